@@ -1,0 +1,700 @@
+r"""Linear-Gaussian tracking: the Kalman filter of syllabus section 6.
+
+The model is
+
+.. math::  x_t = F x_{t-1} + w_t,\quad w_t \sim \mathcal N(0, Q), \qquad
+           z_t = H x_t + v_t,\quad v_t \sim \mathcal N(0, R),
+
+with state :math:`x \in \mathbb R^n` and measurement :math:`z \in \mathbb R^m`. If the belief
+:math:`p(x_{t-1}\mid z_{1:t-1}) = \mathcal N(\hat x, P)` is Gaussian, so are the prediction and the
+posterior (Problem 3): a linear map of a Gaussian plus independent Gaussian noise is Gaussian, and a
+Gaussian prior times a Gaussian likelihood linear in :math:`x` is, after completing the square, a
+Gaussian posterior. The recursion on the mean and covariance is
+
+.. math::
+    \text{predict:}\quad & \hat x^- = F \hat x, \qquad P^- = F P F^\top + Q, \\
+    \text{update:}\quad  & y = z - H\hat x^-, \quad S = H P^- H^\top + R, \quad K = P^- H^\top S^{-1}, \\
+                         & \hat x = \hat x^- + K y, \quad
+                           P = (I - K H) P^- (I - K H)^\top + K R K^\top .
+
+The last line is the *Joseph form*: algebraically equal to the textbook :math:`(I - KH)P^-` for the
+optimal gain, but a sum of two PSD terms, so rounding cannot make :math:`P` indefinite. ``S`` is
+never inverted explicitly: ``K`` comes from a Cholesky solve with ``S``.
+
+Contents
+--------
+- :func:`white_noise_acceleration_Q`, :func:`constant_velocity_model` – the CV model.
+- :class:`KalmanFilter` – one filter, any ``(F, H, Q, R)``.
+- :class:`KalmanFilterCV2D` – the syllabus' class (section 8), with the correct ``Q``.
+- :class:`BatchKalmanFilter` – ``M`` independent tracks as stacked arrays (no Python loop).
+- :func:`steady_state_covariance` – the predicted steady-state ``P`` (discrete Riccati equation).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from ._validation import as_array, check_psd, check_square, nonnegative, positive, positive_int
+
+__all__ = [
+    "BatchKalmanFilter",
+    "KalmanFilter",
+    "KalmanFilterCV2D",
+    "constant_velocity_model",
+    "steady_state_covariance",
+    "white_noise_acceleration_Q",
+]
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
+
+
+# ----------------------------------------------------------------------------------------------------
+# constant-velocity model
+# ----------------------------------------------------------------------------------------------------
+def _dim(dim) -> int:
+    d = positive_int(dim, "dim")
+    if d > 3:
+        raise ValueError(f"dim must be 1, 2 or 3, got {d}")
+    return d
+
+
+def white_noise_acceleration_Q(dt: float, q: float, dim: int = 2) -> np.ndarray:
+    r"""Process noise of the discretised white-noise-acceleration (constant-velocity) model.
+
+    For one axis with state :math:`[p, v]` and a piecewise-constant acceleration of variance
+    :math:`q` over each step, :math:`w = [\tfrac12 \Delta t^2, \Delta t]^\top a` and
+
+    .. math::  Q_{1D} = q \begin{bmatrix} \Delta t^4/4 & \Delta t^3/2 \\
+                                           \Delta t^3/2 & \Delta t^2 \end{bmatrix}.
+
+    The state here is ordered by derivative, :math:`x = [p_1, \dots, p_d, v_1, \dots, v_d]`
+    (for ``dim=2``: ``[px, py, vx, vy]``), and the axes are independent, so
+
+    .. math::  Q = Q_{1D} \otimes I_d, \qquad Q[i, j] = Q_{1D}[i // d, j // d]\,\delta_{i \% d,\, j \% d}.
+
+    The block-diagonal :math:`\operatorname{blkdiag}(Q_{1D}, Q_{1D})` of the syllabus' code is the
+    right matrix only for the *axis-major* order ``[px, vx, py, vy]``. Applied to ``[px, py, vx, vy]``
+    its first block lands on the pair ``(px, py)``: it gives ``py`` the velocity-sized variance
+    :math:`q\Delta t^2`, correlates ``px`` with ``py`` (covariance :math:`q\Delta t^3/2`) and ``vx``
+    with ``vy``, and drops the position–velocity covariance of each axis. ``Q ⊗ I`` is the matrix
+    for this ordering.
+
+    Parameters
+    ----------
+    dt : float
+        Time step (> 0).
+    q : float
+        Acceleration variance (>= 0), units of (length/time²)².
+    dim : int
+        Number of spatial axes, 1, 2 or 3.
+
+    Returns
+    -------
+    Q : ndarray, shape (2*dim, 2*dim)
+
+    Examples
+    --------
+    >>> white_noise_acceleration_Q(1.0, 4.0, dim=2)
+    array([[1., 0., 2., 0.],
+           [0., 1., 0., 2.],
+           [2., 0., 4., 0.],
+           [0., 2., 0., 4.]])
+    """
+    dt = positive(dt, "dt")
+    q = nonnegative(q, "q")
+    d = _dim(dim)
+    q1d = q * np.array([[dt**4 / 4.0, dt**3 / 2.0], [dt**3 / 2.0, dt**2]])
+    return np.kron(q1d, np.eye(d))
+
+
+def constant_velocity_model(dt: float, q: float, r, dim: int = 2):
+    r"""Matrices ``(F, H, Q, R)`` of the constant-velocity model with position measurements.
+
+    With state :math:`[p, v]` (``p, v`` each of length ``dim``)
+
+    .. math::  F = \begin{bmatrix} I & \Delta t\, I \\ 0 & I \end{bmatrix}, \quad
+               H = \begin{bmatrix} I & 0 \end{bmatrix}, \quad
+               Q = Q_{1D} \otimes I, \quad R = r I .
+
+    Parameters
+    ----------
+    dt : float
+        Time step (> 0).
+    q : float
+        Acceleration variance (>= 0), see :func:`white_noise_acceleration_Q`.
+    r : float or array_like, shape (dim, dim)
+        Measurement noise variance (> 0), or a full positive definite covariance.
+    dim : int
+        Number of spatial axes, 1, 2 or 3.
+
+    Returns
+    -------
+    F : ndarray, shape (2*dim, 2*dim)
+    H : ndarray, shape (dim, 2*dim)
+    Q : ndarray, shape (2*dim, 2*dim)
+    R : ndarray, shape (dim, dim)
+
+    Examples
+    --------
+    >>> F, H, Q, R = constant_velocity_model(0.5, 1.0, 2.0, dim=1)
+    >>> F
+    array([[1. , 0.5],
+           [0. , 1. ]])
+    >>> H, R
+    (array([[1., 0.]]), array([[2.]]))
+    """
+    dt = positive(dt, "dt")
+    d = _dim(dim)
+    Q = white_noise_acceleration_Q(dt, q, d)
+    if np.ndim(r) == 0:
+        R = positive(r, "r") * np.eye(d)
+    else:
+        R = as_array(r, "r", (d, d))
+        check_psd(R, "r", strict=True)
+    eye = np.eye(d)
+    zero = np.zeros((d, d))
+    F = np.block([[eye, dt * eye], [zero, eye]])
+    H = np.hstack([eye, zero])
+    return F, H, Q, R
+
+
+# ----------------------------------------------------------------------------------------------------
+# shared validation
+# ----------------------------------------------------------------------------------------------------
+def _model(F, H, Q, R):
+    F = as_array(F, "F")
+    check_square(F, "F")
+    if F.ndim != 2:
+        raise ValueError(f"F must have shape (n, n), got {F.shape}")
+    n = F.shape[0]
+    H = as_array(H, "H", ("m", n))
+    m = H.shape[0]
+    if m == 0:
+        raise ValueError(f"H must have shape (m, {n}) with m >= 1, got {H.shape}")
+    Q = as_array(Q, "Q", (n, n))
+    check_psd(Q, "Q")
+    R = as_array(R, "R", (m, m))
+    check_psd(R, "R")
+    return F, H, 0.5 * (Q + Q.T), 0.5 * (R + R.T)
+
+
+def _not_pd(name: str) -> ValueError:
+    return ValueError(
+        f"{name} (innovation covariance H P H^T + R) is not positive definite; "
+        "use a positive definite R or P"
+    )
+
+
+_SMALL = 4  # up to this size, Cholesky and solves are unrolled over the matrix axes (vectorised over tracks)
+
+
+def _batched_cholesky(S: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factors of a stack ``S (k, m, m)``; ``ValueError`` if one is not PD."""
+    m = S.shape[1]
+    if m > _SMALL:
+        try:
+            return np.linalg.cholesky(S)
+        except np.linalg.LinAlgError:
+            raise _not_pd("S") from None
+    L = np.zeros_like(S)
+    for j in range(m):
+        d = S[:, j, j] - (L[:, j, :j] ** 2).sum(axis=1)
+        if not (d > 0).all():
+            raise _not_pd("S")
+        L[:, j, j] = np.sqrt(d)
+        for i in range(j + 1, m):
+            L[:, i, j] = (S[:, i, j] - (L[:, i, :j] * L[:, j, :j]).sum(axis=1)) / L[:, j, j]
+    return L
+
+
+def _batched_cho_solve(L: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Solve ``(L Lᵀ) X = B`` for stacks ``L (k, m, m)``, ``B (k, m, r)`` by substitution."""
+    m = L.shape[1]
+    if m > _SMALL:
+        return np.linalg.solve(L @ np.swapaxes(L, -1, -2), B)
+    Y = np.empty_like(B)
+    for i in range(m):  # forward: L Y = B
+        acc = B[:, i, :].copy()
+        for j in range(i):
+            acc -= L[:, i, j, None] * Y[:, j, :]
+        Y[:, i, :] = acc / L[:, i, i, None]
+    X = np.empty_like(B)
+    for i in reversed(range(m)):  # backward: Lᵀ X = Y
+        acc = Y[:, i, :].copy()
+        for j in range(i + 1, m):
+            acc -= L[:, j, i, None] * X[:, j, :]
+        X[:, i, :] = acc / L[:, i, i, None]
+    return X
+
+
+class KalmanFilter:
+    r"""Linear Kalman filter (syllabus section 6) with a Joseph-form update.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        State transition.
+    H : array_like, shape (m, n)
+        Measurement matrix.
+    Q : array_like, shape (n, n)
+        Process noise covariance (symmetric PSD).
+    R : array_like, shape (m, m)
+        Measurement noise covariance (symmetric PSD; ``H P H^T + R`` must be PD).
+    x0 : array_like, shape (n,)
+        Initial state mean.
+    P0 : array_like, shape (n, n)
+        Initial state covariance (symmetric PSD).
+
+    Attributes
+    ----------
+    x : ndarray, shape (n,)
+        State mean (after the last ``predict``/``update``).
+    P : ndarray, shape (n, n)
+        State covariance.
+    innovation : ndarray, shape (m,) or None
+        :math:`y = z - H \hat x^-` of the last update (``None`` after a missed measurement).
+    S : ndarray, shape (m, m) or None
+        Innovation covariance :math:`H P^- H^\top + R` of the last update.
+    K : ndarray, shape (n, m) or None
+        Kalman gain of the last update (``None`` after a missed measurement).
+    log_likelihood : float or None
+        :math:`\log \mathcal N(z; H\hat x^-, S) = -\tfrac12 (y^\top S^{-1} y + \log\det S + m\log 2\pi)`
+        of the last update; ``0.0`` after a missed measurement (``log p(∅) = 0``), so the sum over a
+        sequence is the log marginal likelihood of the measurements that were made.
+
+    Examples
+    --------
+    A 1-D random walk observed directly:
+
+    >>> kf = KalmanFilter(F=[[1.0]], H=[[1.0]], Q=[[1.0]], R=[[1.0]], x0=[0.0], P0=[[1.0]])
+    >>> kf.predict()
+    >>> kf.P
+    array([[2.]])
+    >>> kf.update([3.0])
+    >>> kf.x, kf.P          # gain 2/3
+    (array([2.]), array([[0.66666667]]))
+    >>> kf.update(None)      # missed measurement: nothing changes
+    >>> kf.x
+    array([2.])
+    """
+
+    def __init__(self, F, H, Q, R, x0, P0):
+        self.F, self.H, self.Q, self.R = _model(F, H, Q, R)
+        self.dim_x = self.F.shape[0]
+        self.dim_z = self.H.shape[0]
+        self.x = as_array(x0, "x0", (self.dim_x,))
+        P = as_array(P0, "P0", (self.dim_x, self.dim_x))
+        check_psd(P, "P0")
+        self.P = 0.5 * (P + P.T)
+        self.innovation: np.ndarray | None = None
+        self.S: np.ndarray | None = None
+        self.K: np.ndarray | None = None
+        self.log_likelihood: float | None = None
+
+    # -- steps ---------------------------------------------------------------------------------------
+    def predict(self) -> None:
+        r"""Time update :math:`\hat x \leftarrow F\hat x`, :math:`P \leftarrow F P F^\top + Q`."""
+        self.x = self.F @ self.x
+        P = self.F @ self.P @ self.F.T + self.Q
+        self.P = 0.5 * (P + P.T)
+
+    def _measurement(self, z, name: str = "z") -> np.ndarray:
+        z = as_array(z, name)
+        if z.shape == (self.dim_z, 1):
+            z = z[:, 0]
+        if z.shape != (self.dim_z,):
+            raise ValueError(f"{name} must have shape ({self.dim_z},), got {z.shape}")
+        return z
+
+    def _innovation_cov(self):
+        PHt = self.P @ self.H.T
+        S = self.H @ PHt + self.R
+        S = 0.5 * (S + S.T)
+        try:
+            cho = scipy.linalg.cho_factor(S, lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            raise _not_pd("S") from None
+        return PHt, S, cho
+
+    def update(self, z) -> None:
+        r"""Measurement update with ``z`` of shape ``(m,)``; ``None`` means a missed measurement.
+
+        Joseph form :math:`P = (I-KH)P^-(I-KH)^\top + KRK^\top`; :math:`K` from a Cholesky solve.
+        With ``z=None`` the state is left as predicted, ``innovation`` and ``K`` become ``None`` and
+        ``log_likelihood`` is ``0.0``.
+        """
+        if z is None:
+            self.innovation = None
+            self.K = None
+            self.S = self._innovation_cov()[1]
+            self.log_likelihood = 0.0
+            return
+        z = self._measurement(z)
+        PHt, S, cho = self._innovation_cov()
+        y = z - self.H @ self.x
+        K = scipy.linalg.cho_solve(cho, PHt.T, check_finite=False).T
+        self.x = self.x + K @ y
+        IKH = np.eye(self.dim_x) - K @ self.H
+        P = IKH @ self.P @ IKH.T + K @ self.R @ K.T
+        self.P = 0.5 * (P + P.T)
+        w = scipy.linalg.cho_solve(cho, y, check_finite=False)
+        logdet = 2.0 * float(np.log(np.diag(cho[0])).sum())
+        self.innovation, self.S, self.K = y, S, K
+        self.log_likelihood = -0.5 * (float(y @ w) + logdet + self.dim_z * _LOG_2PI)
+
+    def predicted_measurement(self):
+        """Return ``(H x, S)`` for the current (predicted) state: shapes ``(m,)`` and ``(m, m)``."""
+        return self.H @ self.x, self._innovation_cov()[1]
+
+    def mahalanobis(self, z, squared: bool = False) -> float:
+        r"""Mahalanobis distance of ``z`` from the current predicted measurement.
+
+        :math:`d = \sqrt{(z - H\hat x)^\top S^{-1} (z - H\hat x)}` with :math:`S = HPH^\top + R`
+        from the *current* ``x, P`` (call it after :meth:`predict`, before :meth:`update`);
+        ``squared=True`` returns :math:`d^2` (the gating statistic, χ² with ``m`` degrees of freedom).
+        """
+        z = self._measurement(z)
+        _, _, cho = self._innovation_cov()
+        y = z - self.H @ self.x
+        d2 = float(y @ scipy.linalg.cho_solve(cho, y, check_finite=False))
+        return d2 if squared else float(np.sqrt(d2))
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(dim_x={self.dim_x}, dim_z={self.dim_z}, x={self.x!r})"
+
+
+class KalmanFilterCV2D(KalmanFilter):
+    r"""The syllabus' constant-velocity filter in 2-D (section 8), with the correct ``Q``.
+
+    State :math:`x = [p_x, p_y, v_x, v_y]^\top`, measurement :math:`z = [p_x, p_y]^\top`,
+    ``Q = Q1d ⊗ I2`` (see :func:`white_noise_acceleration_Q`; the syllabus' ``blkdiag(Q1d, Q1d)``
+    is wrong for this state order), ``R = meas_var·I``, ``x0 = 0``, ``P0 = 1e3·I``.
+
+    Parameters
+    ----------
+    dt : float
+        Time step (> 0).
+    process_var : float
+        Acceleration variance ``q`` (>= 0).
+    meas_var : float
+        Position measurement variance (> 0).
+
+    Examples
+    --------
+    >>> kf = KalmanFilterCV2D(dt=0.1)
+    >>> for z in [(0.0, 0.0), (0.9, 0.1), (2.1, 0.2), (3.0, 0.1)]:
+    ...     kf.predict()
+    ...     kf.update(z)
+    >>> px, py = kf.position()
+    >>> bool(2.5 < px < 3.1 and 0.0 < py < 0.3)
+    True
+    """
+
+    def __init__(self, dt: float = 0.1, process_var: float = 1.0, meas_var: float = 4.0):
+        self.dt = positive(dt, "dt")
+        F, H, Q, R = constant_velocity_model(self.dt, process_var, positive(meas_var, "meas_var"), dim=2)
+        super().__init__(F, H, Q, R, np.zeros(4), 1e3 * np.eye(4))
+
+    def position(self) -> tuple[float, float]:
+        """Return the estimated position ``(px, py)`` as two floats."""
+        return float(self.x[0]), float(self.x[1])
+
+
+# ----------------------------------------------------------------------------------------------------
+# batch of independent tracks
+# ----------------------------------------------------------------------------------------------------
+class BatchKalmanFilter:
+    r"""``M`` independent Kalman filters sharing ``(F, H, Q, R)``, stored as stacked arrays.
+
+    Every step is a handful of batched ``matmul``/``solve`` calls over the track axis (no Python
+    loop over tracks); the maths is that of :class:`KalmanFilter` track by track. Tracks can be
+    added with :meth:`append` and removed with :meth:`keep`, as a multi-object tracker needs.
+
+    Parameters
+    ----------
+    F, H, Q, R : array_like
+        Shapes ``(n, n)``, ``(m, n)``, ``(n, n)``, ``(m, m)`` as for :class:`KalmanFilter`.
+    x0 : array_like, shape (M, n)
+        Initial means (``M = 0`` is allowed: start empty, :meth:`append` later).
+    P0 : array_like, shape (M, n, n) or (n, n)
+        Initial covariances; one ``(n, n)`` matrix is shared by all tracks (copied).
+
+    Attributes
+    ----------
+    x : ndarray, shape (M, n)
+    P : ndarray, shape (M, n, n)
+    innovation : ndarray, shape (M, m) or None
+        Innovations of the last :meth:`update`; NaN rows for tracks that were not updated.
+    S : ndarray, shape (M, m, m) or None
+        Innovation covariances ``H P⁻ Hᵀ + R`` at the last :meth:`update` (all tracks).
+    log_likelihood : ndarray, shape (M,) or None
+        Per-track log-likelihood of the last update (0 for tracks not updated).
+
+    ``innovation``, ``S`` and ``log_likelihood`` are reset to ``None`` by :meth:`append`/:meth:`keep`.
+
+    Examples
+    --------
+    >>> F, H, Q, R = constant_velocity_model(1.0, 0.0, 1.0, dim=1)
+    >>> bkf = BatchKalmanFilter(F, H, Q, R, x0=[[0.0, 1.0], [5.0, 0.0]], P0=np.eye(2))
+    >>> bkf.predict()
+    >>> bkf.x
+    array([[1., 1.],
+           [5., 0.]])
+    >>> bkf.update([[1.0], [9.0]], mask=[True, False])   # second track missed
+    >>> bkf.x[1]
+    array([5., 0.])
+    >>> idx = bkf.append([2.0, 0.0])                      # a third track, P0 = the first P0
+    >>> len(bkf), idx
+    (3, array([2]))
+    >>> bkf.keep([0, 2]); len(bkf)
+    2
+    """
+
+    def __init__(self, F, H, Q, R, x0, P0):
+        self.F, self.H, self.Q, self.R = _model(F, H, Q, R)
+        self.dim_x = n = self.F.shape[0]
+        self.dim_z = self.H.shape[0]
+        self.x = as_array(x0, "x0", ("M", n))
+        self._P0_default: np.ndarray | None = None
+        self.P = self._covariances(P0, "P0", self.x.shape[0])
+        self._reset_last()
+
+    def _covariances(self, P0, name: str, M: int) -> np.ndarray:
+        n = self.dim_x
+        P0 = as_array(P0, name)
+        if P0.shape == (n, n):
+            check_psd(P0, name)
+            P0 = 0.5 * (P0 + P0.T)
+            if self._P0_default is None:
+                self._P0_default = P0.copy()
+            return np.broadcast_to(P0, (M, n, n)).copy()
+        if P0.shape != (M, n, n):
+            raise ValueError(f"{name} must have shape ({M}, {n}, {n}) or ({n}, {n}), got {P0.shape}")
+        if M:
+            check_psd(P0, name)
+        return 0.5 * (P0 + np.swapaxes(P0, -1, -2))
+
+    def _reset_last(self) -> None:
+        self.innovation: np.ndarray | None = None
+        self.S: np.ndarray | None = None
+        self.log_likelihood: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.x.shape[0]
+
+    @property
+    def M(self) -> int:
+        """Number of tracks."""
+        return self.x.shape[0]
+
+    # -- track management ----------------------------------------------------------------------------
+    def append(self, x0, P0=None) -> np.ndarray:
+        """Add tracks; return their indices.
+
+        Parameters
+        ----------
+        x0 : array_like, shape (k, n) or (n,)
+            Means of the new tracks.
+        P0 : array_like, shape (k, n, n) or (n, n), optional
+            Their covariances; default: the ``(n, n)`` ``P0`` given to the constructor (an error
+            if there was none).
+
+        Returns
+        -------
+        indices : ndarray of int, shape (k,)
+        """
+        n = self.dim_x
+        x0 = as_array(x0, "x0")
+        if x0.shape == (n,):
+            x0 = x0[None, :]
+        if x0.ndim != 2 or x0.shape[1] != n:
+            raise ValueError(f"x0 must have shape (k, {n}) or ({n},), got {x0.shape}")
+        k = x0.shape[0]
+        if P0 is None:
+            if self._P0_default is None:
+                raise ValueError("P0 is required: the constructor was not given a shared (n, n) P0")
+            P0 = self._P0_default
+        P0 = self._covariances(P0, "P0", k)
+        start = self.M
+        self.x = np.concatenate([self.x, x0], axis=0)
+        self.P = np.concatenate([self.P, P0], axis=0)
+        self._reset_last()
+        return np.arange(start, start + k)
+
+    def keep(self, indices) -> None:
+        """Keep only the tracks selected by ``indices`` (int array, in that order, or bool mask (M,))."""
+        idx = np.asarray(indices)
+        if idx.dtype == bool:
+            if idx.shape != (self.M,):
+                raise ValueError(f"indices as a mask must have shape ({self.M},), got {idx.shape}")
+        elif idx.size == 0:
+            idx = np.zeros(0, dtype=int)
+        elif not np.issubdtype(idx.dtype, np.integer) or idx.ndim != 1:
+            raise ValueError(f"indices must be a 1-D int array or a bool mask of shape ({self.M},)")
+        elif idx.min() < -self.M or idx.max() >= self.M:
+            raise ValueError(f"indices out of range for {self.M} tracks")
+        self.x = self.x[idx]
+        self.P = self.P[idx]
+        self._reset_last()
+
+    # -- steps ---------------------------------------------------------------------------------------
+    def _left(self, A: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """``A @ P_i`` for every track with one shared ``A (r, n)``, as one GEMM (no per-track call)."""
+        k, n, c = P.shape
+        return (A @ P.transpose(1, 0, 2).reshape(n, k * c)).reshape(A.shape[0], k, c).transpose(1, 0, 2)
+
+    @staticmethod
+    def _right(P: np.ndarray, B: np.ndarray) -> np.ndarray:
+        """``P_i @ B`` for every track with one shared ``B (c, r)``, as one GEMM."""
+        k, r, c = P.shape
+        return (P.reshape(k * r, c) @ B).reshape(k, r, B.shape[1])
+
+    def predict(self) -> None:
+        r"""Time update of every track: :math:`x_i \leftarrow F x_i`, :math:`P_i \leftarrow F P_i F^\top + Q`.
+        """
+        self.x = self.x @ self.F.T
+        P = self._left(self.F, self._right(self.P, self.F.T)) + self.Q
+        self.P = 0.5 * (P + np.swapaxes(P, -1, -2))
+
+    def predicted_measurements(self):
+        """Predicted measurements and innovation covariances of all tracks, for gating.
+
+        Returns
+        -------
+        z_pred : ndarray, shape (M, m)
+            :math:`H x_i`.
+        S : ndarray, shape (M, m, m)
+            :math:`H P_i H^\\top + R`.
+        """
+        return self.x @ self.H.T, self._innovation_cov(self._left(self.H, self.P))
+
+    def _innovation_cov(self, HP: np.ndarray) -> np.ndarray:
+        S = self._right(HP, self.H.T) + self.R
+        return 0.5 * (S + np.swapaxes(S, -1, -2))
+
+    def update(self, Z, mask=None) -> None:
+        r"""Joseph-form measurement update of the tracks with ``mask[i]`` True.
+
+        Per track: :math:`S = HPH^\top + R = LL^\top` (Cholesky), :math:`K^\top = S^{-1} H P` and
+        :math:`S^{-1}y` by triangular solves, then
+        :math:`P \leftarrow [I - KH,\ K]\,\operatorname{blkdiag}(P, R)\,[I - KH,\ K]^\top`
+        (the Joseph form as one congruence).
+
+        Parameters
+        ----------
+        Z : array_like, shape (M, m)
+            One measurement per track; rows with ``mask`` False are ignored and may be NaN.
+        mask : array_like of bool, shape (M,), optional
+            Which tracks have a measurement (default: all).
+        """
+        M, n, m = self.M, self.dim_x, self.dim_z
+        Z = as_array(Z, "Z", (M, m), allow_nan=True)
+        if mask is None:
+            sel = np.ones(M, dtype=bool)
+        else:
+            sel = np.asarray(mask)
+            if sel.dtype != bool or sel.shape != (M,):
+                raise ValueError(f"mask must be a bool array of shape ({M},), got {sel.dtype} {sel.shape}")
+        if np.isnan(Z[sel]).any():
+            raise ValueError("Z contains NaN in a row that is to be updated (mask True)")
+        HP_all = self._left(self.H, self.P)                          # (M, m, n)
+        S = self._innovation_cov(HP_all)                              # (M, m, m)
+        y_all = np.full((M, m), np.nan)
+        ll = np.zeros(M)
+        if sel.any():
+            idx = np.flatnonzero(sel) if not sel.all() else slice(None)
+            P, HP, Ss = self.P[idx], HP_all[idx], S[idx]
+            y = Z[idx] - self.x[idx] @ self.H.T
+            L = _batched_cholesky(Ss)
+            # one pair of triangular solves for both Kᵀ = S⁻¹ H P and S⁻¹ y
+            sol = _batched_cho_solve(L, np.concatenate([HP, y[:, :, None]], axis=2))
+            K = np.swapaxes(sol[:, :, :n], -1, -2)                    # (k, n, m)
+            w = sol[:, :, n]                                          # (k, m)
+            self.x[idx] = self.x[idx] + np.einsum("knm,km->kn", K, y)
+            A = np.concatenate([np.eye(n) - self._right(K, self.H), K], axis=2)   # (k, n, n+m)
+            B = np.zeros((A.shape[0], n + m, n + m))
+            B[:, :n, :n] = P
+            B[:, n:, n:] = self.R
+            Pn = A @ B @ np.swapaxes(A, -1, -2)
+            self.P[idx] = 0.5 * (Pn + np.swapaxes(Pn, -1, -2))
+            logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
+            ll[idx] = -0.5 * (np.einsum("km,km->k", y, w) + logdet + m * _LOG_2PI)
+            y_all[idx] = y
+        self.innovation, self.S, self.log_likelihood = y_all, S, ll
+
+    def __repr__(self) -> str:
+        return f"BatchKalmanFilter(M={self.M}, dim_x={self.dim_x}, dim_z={self.dim_z})"
+
+
+# ----------------------------------------------------------------------------------------------------
+# steady state
+# ----------------------------------------------------------------------------------------------------
+def _uncontrollable_on(F, B, eigs, which: str) -> complex | None:
+    n = F.shape[0]
+    tol = 1e-9 * max(1.0, float(np.abs(F).max()), float(np.abs(B).max(initial=0.0)))
+    for lam in eigs:
+        if which == "unstable" and abs(lam) < 1.0 - 1e-10:
+            continue
+        if which == "unit" and abs(abs(lam) - 1.0) > 1e-8:
+            continue
+        M = np.hstack([lam * np.eye(n) - F, B.astype(complex)])
+        if np.linalg.matrix_rank(M, tol=tol * n) < n:
+            return complex(lam)
+    return None
+
+
+def steady_state_covariance(F, H, Q, R) -> np.ndarray:
+    r"""Predicted (a-priori) steady-state covariance :math:`P_\infty` of the Kalman filter.
+
+    :math:`P_\infty` is the stabilising solution of the discrete algebraic Riccati equation
+
+    .. math::  P = F P F^\top - F P H^\top (H P H^\top + R)^{-1} H P F^\top + Q,
+
+    computed with ``scipy.linalg.solve_discrete_are(F.T, H.T, Q, R)`` (the control DARE of the dual
+    system). It exists when ``(F, H)`` is detectable and ``(F, Q^{1/2})`` has no uncontrollable mode
+    on the unit circle; both are checked (PBH rank test) before calling scipy.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+    H : array_like, shape (m, n)
+    Q : array_like, shape (n, n)
+        Symmetric PSD.
+    R : array_like, shape (m, m)
+        Symmetric positive definite.
+
+    Returns
+    -------
+    P : ndarray, shape (n, n)
+        The limit of the predicted covariance ``P⁻`` (after ``predict``); the posterior limit is
+        ``P - P Hᵀ (H P Hᵀ + R)⁻¹ H P``.
+
+    Examples
+    --------
+    Random walk ``x_t = x_{t-1} + w``, ``z = x + v`` with ``Q = R = 1``: ``P² - P - 1 = 0``.
+
+    >>> P = steady_state_covariance([[1.0]], [[1.0]], [[1.0]], [[1.0]])
+    >>> bool(np.isclose(P[0, 0], (1 + 5 ** 0.5) / 2))
+    True
+    """
+    F, H, Q, R = _model(F, H, Q, R)
+    check_psd(R, "R", strict=True)
+    eigs = np.linalg.eigvals(F)
+    bad = _uncontrollable_on(F.T, H.T, eigs, "unstable")
+    if bad is not None:
+        raise ValueError(
+            f"F, H: the pair (F, H) is not detectable (mode λ={bad:.4g} with |λ| >= 1 is unobservable); "
+            "no steady-state covariance exists"
+        )
+    bad = _uncontrollable_on(F, Q, eigs, "unit")
+    if bad is not None:
+        raise ValueError(
+            f"F, Q: the pair (F, Q^1/2) has an unexcited mode λ={bad:.4g} on the unit circle; "
+            "the Riccati equation has no stabilising solution"
+        )
+    try:
+        P = scipy.linalg.solve_discrete_are(F.T, H.T, Q, R)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise ValueError(f"F, H, Q, R: scipy.linalg.solve_discrete_are failed: {exc}") from exc
+    return 0.5 * (P + P.T)

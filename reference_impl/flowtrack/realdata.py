@@ -1,0 +1,261 @@
+r"""Real data shipped inside installed packages: the Middlebury 2014 *Motorcycle* stereo pair.
+
+``skimage.data.stereo_motorcycle()`` returns the rectified left/right images (500×741) and the
+ground-truth disparity of the left image, down-sampled by 4 from the Middlebury 2014 benchmark
+(Scharstein et al., GCPR 2014). Its docstring gives the calibration valid for these images, which is
+what this module uses:
+
+=====================  ===============
+focal length f         994.978 px
+principal point c_x    311.193 px
+principal point c_y    254.877 px
+doffs (c_x' − c_x)     31.086 px
+baseline B             193.001 mm
+=====================  ===============
+
+A left pixel :math:`(r, c)` with disparity :math:`d` has depth
+:math:`Z = B f / (d + d_\mathrm{offs})` (mm, converted to metres) and back-projects with the
+pinhole model of :mod:`flowtrack.camera`, :math:`X = Z ((c - c_x)/f, (r - c_y)/f, 1)`. Invalid
+disparities (``inf``, or NaN in older scikit-image versions) are dropped.
+"""
+
+from __future__ import annotations
+
+import functools
+import numbers
+
+import numpy as np
+
+from ._validation import _scalar, nonnegative, positive, positive_int
+from .camera import PinholeCamera, backproject
+
+__all__ = [
+    "FRONT_WHEEL_PIXELS",
+    "MOTORCYCLE_CALIBRATION",
+    "motorcycle_camera",
+    "motorcycle_cloud",
+    "motorcycle_depth",
+    "motorcycle_flow_case",
+]
+
+#: Calibration of the down-sampled pair, from the docstring of ``skimage.data.stereo_motorcycle``.
+MOTORCYCLE_CALIBRATION = {
+    "f": 994.978,  # px
+    "cx": 311.193,  # px
+    "cy": 254.877,  # px
+    "doffs": 31.086,  # px, x-difference of the principal points of the two cameras
+    "baseline_mm": 193.001,
+}
+
+#: Pixel box ``(row0, row1, col0, col1)`` (half-open) around the front wheel in the left image.
+FRONT_WHEEL_PIXELS = (285, 460, 500, 695)
+
+
+def motorcycle_camera() -> PinholeCamera:
+    """The left camera of the down-sampled Motorcycle pair (741×500 pixels).
+
+    Examples
+    --------
+    >>> cam = motorcycle_camera()
+    >>> cam.fx, cam.width, cam.height
+    (994.978, 741, 500)
+    """
+    c = MOTORCYCLE_CALIBRATION
+    return PinholeCamera(c["f"], c["f"], c["cx"], c["cy"], width=741, height=500)
+
+
+@functools.lru_cache(maxsize=1)
+def _load_cached():
+    from skimage import data
+
+    left, _right, disp = data.stereo_motorcycle()
+    left = np.asarray(left)
+    disp = np.asarray(disp, dtype=np.float64)
+    left.flags.writeable = False
+    disp.flags.writeable = False
+    return left, disp
+
+
+def _load():
+    left, disp = _load_cached()
+    return left.copy(), disp.copy()
+
+
+def motorcycle_depth() -> tuple[np.ndarray, np.ndarray]:
+    r"""Metric depth of the left image from the ground-truth disparity.
+
+    Returns
+    -------
+    depth : ndarray, shape (500, 741)
+        :math:`Z = B f / (d + d_\mathrm{offs}) / 1000` in metres; 0 where the disparity is invalid.
+    rgb : ndarray, shape (500, 741, 3) uint8
+        The left image.
+    """
+    left, disp = _load()
+    c = MOTORCYCLE_CALIBRATION
+    ok = np.isfinite(disp) & (disp + c["doffs"] > 0)
+    depth = np.zeros(disp.shape)
+    depth[ok] = c["baseline_mm"] * c["f"] / (disp[ok] + c["doffs"]) / 1000.0
+    return depth, left
+
+
+def motorcycle_cloud(step: int = 4, return_pixels: bool = False):
+    """Coloured point cloud of the Motorcycle scene (left camera frame, metres).
+
+    Parameters
+    ----------
+    step : int, >= 1
+        Keep every ``step``-th row and column (``step=4`` gives about 20k points).
+    return_pixels : bool
+        Also return the ``(row, col)`` of each point.
+
+    Returns
+    -------
+    points : ndarray, shape (N, 3)
+        Camera-frame points (x right, y down, z forward), metres.
+    colors : ndarray, shape (N, 3)
+        RGB in [0, 1].
+    pixels : ndarray, shape (N, 2) int
+        Only with ``return_pixels``.
+
+    Examples
+    --------
+    >>> P, C = motorcycle_cloud(step=16)
+    >>> P.shape[1], C.shape == P.shape, bool(((C >= 0) & (C <= 1)).all())
+    (3, True, True)
+    """
+    step = positive_int(step, "step")
+    depth, rgb = motorcycle_depth()
+    sub = np.zeros(depth.shape, dtype=bool)
+    sub[::step, ::step] = True
+    valid = sub & (depth > 0)
+    X = backproject(depth, motorcycle_camera())[valid]
+    colors = rgb[valid].astype(np.float64) / 255.0
+    if return_pixels:
+        return X, colors, np.argwhere(valid)
+    return X, colors
+
+
+def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rodrigues' formula for a unit ``axis``."""
+    a = axis / np.linalg.norm(axis)
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+
+
+def _apply(T: np.ndarray, X: np.ndarray) -> np.ndarray:
+    return X @ T[:3, :3].T + T[:3, 3]
+
+
+def motorcycle_flow_case(
+    seed: int | None = 0,
+    noise: float = 0.002,
+    step: int = 4,
+    dt: float = 0.1,
+    keep: float = 0.9,
+    global_angle: float = 0.03,
+    global_translation: float = 0.03,
+    part_angle: float = 0.15,
+) -> dict:
+    r"""A scene-flow test case on real geometry with two rigid motions and exact ground truth.
+
+    The Motorcycle cloud :math:`X` (see :func:`motorcycle_cloud`) moves by a global rigid motion
+    :math:`T_g` (rotation by ``global_angle`` rad about a random axis through the cloud's centroid,
+    then a translation of length ``global_translation`` m in a random direction); the points of the
+    front wheel (the pixel box :data:`FRONT_WHEEL_PIXELS`, in front of the wheel's depth cut) first
+    turn by ``part_angle`` about the wheel's own axle (the camera x axis through the part's
+    centroid), :math:`T_p`:
+
+    .. math::  X' = T_g X \ (\text{rest}), \qquad X' = T_g T_p X \ (\text{wheel}), \qquad
+               v = (X' - X)/\Delta t .
+
+    Each time keeps an independent random ``keep`` fraction of the points, shuffled, with
+    Gaussian noise of standard deviation ``noise`` on every coordinate, so there is *no* index
+    correspondence between ``points_t`` and ``points_t1``.
+
+    Parameters
+    ----------
+    seed : int or None
+    noise : float, >= 0
+        Metres.
+    step : int, >= 1
+        Pixel subsampling of the cloud.
+    dt : float, > 0
+    keep : float in (0, 1]
+        Fraction of the points kept at each time.
+    global_angle, global_translation, part_angle : float
+        Motion magnitudes (rad, m, rad).
+
+    Returns
+    -------
+    dict
+        ``points_t (N,3)``, ``points_t1 (M,3)``, ``gt_flow (N,3)`` (velocity of the noiseless point
+        under ``points_t[i]``), ``clean_t (N,3)`` (those noiseless points), ``colors_t (N,3)``,
+        ``labels_t (N,)`` (0 global motion, 1 wheel), ``dt``, ``T_global (4,4)``, ``T_part (4,4)``
+        (applied before ``T_global`` to the wheel), ``part_box`` (the pixel box).
+
+    Examples
+    --------
+    >>> case = motorcycle_flow_case(step=16, noise=0.0)
+    >>> X, v, T = case["clean_t"], case["gt_flow"], case["T_global"]
+    >>> rest = case["labels_t"] == 0
+    >>> bool(np.allclose(X[rest] + v[rest] * case["dt"], X[rest] @ T[:3, :3].T + T[:3, 3]))
+    True
+    """
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, numbers.Integral)):
+        raise TypeError(f"seed must be an int or None, got {type(seed).__name__}")
+    noise = nonnegative(noise, "noise")
+    dt = positive(dt, "dt")
+    keep = positive(keep, "keep")
+    if keep > 1:
+        raise ValueError(f"keep must be in (0, 1], got {keep}")
+    global_angle = nonnegative(global_angle, "global_angle")
+    global_translation = nonnegative(global_translation, "global_translation")
+    part_angle = _scalar(part_angle, "part_angle")
+    rng = np.random.default_rng(seed)
+
+    X, colors, pix = motorcycle_cloud(step=step, return_pixels=True)
+    r0, r1, c0, c1 = FRONT_WHEEL_PIXELS
+    in_box = (pix[:, 0] >= r0) & (pix[:, 0] < r1) & (pix[:, 1] >= c0) & (pix[:, 1] < c1)
+    # the wheel is in front: keep box points nearer than the box's median depth + 0.15 m
+    z_cut = np.median(X[in_box, 2]) + 0.15 if in_box.any() else np.inf
+    part = in_box & (X[:, 2] < z_cut)
+
+    centre = X.mean(axis=0)
+    axis = rng.normal(size=3)
+    Rg = _rotation(axis, global_angle)
+    direction = rng.normal(size=3)
+    direction /= np.linalg.norm(direction)
+    Tg = np.eye(4)
+    Tg[:3, :3] = Rg
+    Tg[:3, 3] = centre - Rg @ centre + global_translation * direction
+
+    Tp = np.eye(4)
+    if part.any():
+        pc = X[part].mean(axis=0)
+        Rp = _rotation(np.array([1.0, 0.0, 0.0]), part_angle)
+        Tp[:3, :3] = Rp
+        Tp[:3, 3] = pc - Rp @ pc
+
+    X1 = _apply(Tg, X)
+    X1[part] = _apply(Tg, _apply(Tp, X[part]))
+    flow = (X1 - X) / dt
+
+    n = X.shape[0]
+    m = max(1, round(keep * n))
+    i0 = rng.permutation(n)[:m]
+    i1 = rng.permutation(n)[:m]
+    points_t = X[i0] + rng.normal(0.0, noise, (m, 3)) if noise > 0 else X[i0].copy()
+    points_t1 = X1[i1] + rng.normal(0.0, noise, (m, 3)) if noise > 0 else X1[i1].copy()
+    return {
+        "points_t": points_t,
+        "points_t1": points_t1,
+        "gt_flow": flow[i0],
+        "clean_t": X[i0],
+        "colors_t": colors[i0],
+        "labels_t": part[i0].astype(np.int64),
+        "dt": dt,
+        "T_global": Tg,
+        "T_part": Tp,
+        "part_box": FRONT_WHEEL_PIXELS,
+    }

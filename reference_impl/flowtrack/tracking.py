@@ -1,0 +1,558 @@
+r"""A multi-object tracker built from small swappable parts (syllabus section 7).
+
+One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' second flowchart:
+
+1. **Predict** every track with the constant-velocity model,
+   :math:`\hat x_i \leftarrow F \hat x_i`, :math:`P_i \leftarrow F P_i F^\top + Q` (all tracks at
+   once in a :class:`~flowtrack.kalman.BatchKalmanFilter`).
+2. **Associate**: build the squared Mahalanobis costs
+   :math:`C_{ij} = (z_j - H\hat x_i)^\top S_i^{-1}(z_j - H\hat x_i)`, :math:`S_i = HP_iH^\top + R`,
+   gate them at :math:`\gamma = F^{-1}_{\chi^2_d}(p)` and solve the gated assignment
+   (:func:`flowtrack.association.assign`: most pairs, then least cost).
+3. **Update** the assigned tracks with their detections (Joseph-form Kalman update).
+4. **Manage** births, occlusions and deletions:
+
+   - every unassigned detection starts a *tentative* track (position = detection, velocity = the
+     detection's scene-flow velocity if given, else 0 with a large variance);
+   - a track becomes *confirmed* once it has ``min_hits`` assigned detections (the birth detection
+     counts as the first); a tentative track is deleted at its first miss;
+   - a confirmed track without a detection is *coasting* (occluded): it is only predicted. It is
+     deleted when its consecutive misses exceed ``max_misses``, i.e. at the ``max_misses + 1``-th
+     consecutive miss; an occlusion of up to ``max_misses`` frames keeps the track and its id.
+
+Track ids come from a counter and are never reused.
+
+The parts have tiny interfaces, in the spirit of Stone Soup, so a lesson can swap one:
+
+=================  =========================================================================
+part               interface
+=================  =========================================================================
+predictor          ``predict(kf) -> (z_pred (M,m), S (M,m,m))``
+associator         ``associate(z_pred, S, detections) -> (matches (K,2), unmatched_tracks,
+                   unmatched_detections)``
+updater            ``update(kf, detections, matches) -> None``
+initiator          ``initiate(detections (k,d), velocities (k,d) or None) -> (x0 (k,n), P0 (k,n,n))``
+deleter            ``delete(hits (M,), misses (M,), confirmed (M,)) -> bool mask (M,)``
+=================  =========================================================================
+
+Examples
+--------
+Two objects moving in opposite directions, observed exactly:
+
+>>> import numpy as np
+>>> trk = MultiObjectTracker(dt=1.0, q=0.01, r=0.01, dim=2)
+>>> for t in range(5):
+...     tracks = trk.step(np.array([[t, 0.0], [10.0 - t, 5.0]]))
+>>> [(tr.id, tr.status) for tr in tracks]
+[(0, 'confirmed'), (1, 'confirmed')]
+>>> np.round(tracks[1].velocity, 2)
+array([-1.,  0.])
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._validation import as_array, nonnegative, positive, positive_int
+from .association import (
+    _assign_unchecked,
+    _cholesky,
+    _greedy_unchecked,
+    _mahalanobis_from_cholesky,
+    chi2_gate,
+)
+from .kalman import BatchKalmanFilter, constant_velocity_model
+
+__all__ = [
+    "GNNAssociator",
+    "GreedyAssociator",
+    "KalmanPredictor",
+    "KalmanUpdater",
+    "MissCountDeleter",
+    "MultiObjectTracker",
+    "SingleDetectionInitiator",
+    "Track",
+]
+
+STATUSES = ("tentative", "confirmed", "coasting")
+
+
+def _probability(value, name: str) -> float:
+    p = positive(value, name)
+    if p >= 1.0:
+        raise ValueError(f"{name} must satisfy 0 < {name} < 1, got {p}")
+    return p
+
+
+# ----------------------------------------------------------------------------------------------------
+# Track
+# ----------------------------------------------------------------------------------------------------
+@dataclass(slots=True)
+class Track:
+    """A snapshot of one track after a :meth:`MultiObjectTracker.step`.
+
+    Attributes
+    ----------
+    id : int
+        Track id, unique over the tracker's lifetime (never reused).
+    x : numpy.ndarray, shape (2*dim,)
+        Posterior state ``[p_1..p_dim, v_1..v_dim]`` (read-only).
+    P : numpy.ndarray, shape (2*dim, 2*dim)
+        Posterior covariance (read-only).
+    status : str
+        ``"tentative"`` (not yet ``min_hits`` detections), ``"confirmed"`` (confirmed and
+        detected this frame) or ``"coasting"`` (confirmed, missed this frame: predicted only).
+    hits : int
+        Number of detections assigned to the track, the birth detection included.
+    misses : int
+        Consecutive frames without a detection (0 when detected this frame).
+    age : int
+        Frames since birth (0 in the birth frame).
+    """
+
+    id: int
+    x: np.ndarray
+    P: np.ndarray
+    status: str
+    hits: int
+    misses: int
+    age: int
+
+    @property
+    def dim(self) -> int:
+        """Number of spatial axes."""
+        return self.x.shape[0] // 2
+
+    @property
+    def position(self) -> np.ndarray:
+        """Estimated position, shape (dim,)."""
+        return self.x[: self.dim]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """Estimated velocity, shape (dim,)."""
+        return self.x[self.dim :]
+
+
+# ----------------------------------------------------------------------------------------------------
+# parts
+# ----------------------------------------------------------------------------------------------------
+class KalmanPredictor:
+    """Predict every track with the filter's motion model; return the predicted measurements.
+
+    ``predict(kf)`` calls ``kf.predict()`` (one batched time update) and returns
+    ``kf.predicted_measurements()``: ``z_pred = H x_i`` (M, m) and ``S_i = H P_i H^T + R`` (M, m, m).
+    """
+
+    def predict(self, kf: BatchKalmanFilter):
+        kf.predict()
+        return kf.predicted_measurements()
+
+
+class GNNAssociator:
+    r"""Global nearest neighbour: Mahalanobis gate, then the optimal gated assignment.
+
+    A pair ``(i, j)`` is admissible when its squared Mahalanobis distance
+    :math:`d^2_{ij} = (z_j - \hat z_i)^\top S_i^{-1} (z_j - \hat z_i)` is at most the gate
+    :math:`\gamma = F^{-1}_{\chi^2_m}(p)`. Among admissible pairs the assignment minimises the sum of
+
+    .. math::  C_{ij} = d^2_{ij} + \ln\det S_i \quad (\texttt{log\_det=True, default}), \qquad
+               C_{ij} = d^2_{ij} \quad (\texttt{log\_det=False}),
+
+    i.e. (up to a constant) :math:`-2 \ln \mathcal N(z_j; \hat z_i, S_i)`, the negative log-likelihood
+    of the pair. The :math:`\ln\det S_i` term matters when tracks have very different
+    uncertainties: a track born last frame (velocity unknown, large :math:`S`) makes *every* nearby
+    detection look close in Mahalanobis terms, and with :math:`d^2` alone it steals the detection of
+    an established track whose detection was, by chance, just outside that track's gate one frame
+    earlier (an identity switch). When all :math:`S_i` are equal the two costs give the same matching.
+
+    Parameters
+    ----------
+    gate_prob : float
+        Probability that a correct detection falls inside the gate, ``0 < gate_prob < 1``.
+    log_det : bool
+        Add :math:`\ln\det S_i` to the assignment cost (default ``True``); ``False`` uses the pure
+        squared Mahalanobis distance of the syllabus.
+
+    Notes
+    -----
+    ``gate(m)`` returns the threshold, ``assigner(cost, gate)`` the matching
+    (:func:`flowtrack.association.assign`); subclasses override one (see :class:`GreedyAssociator`).
+    """
+
+    def __init__(self, gate_prob: float = 0.99, log_det: bool = True):
+        self.gate_prob = _probability(gate_prob, "gate_prob")
+        self.log_det = bool(log_det)
+        self._gates: dict[int, float] = {}
+
+    def gate(self, m: int) -> float:
+        """The gate for ``m``-dimensional measurements (cached)."""
+        if m not in self._gates:
+            self._gates[m] = chi2_gate(m, self.gate_prob)
+        return self._gates[m]
+
+    def assigner(self, cost: np.ndarray, gate: float):
+        """Most admissible pairs, then least cost (:func:`flowtrack.association.assign`)."""
+        return _assign_unchecked(cost, gate)
+
+    def associate(self, z_pred: np.ndarray, S: np.ndarray, detections: np.ndarray):
+        """Return ``(matches (K, 2), unmatched_tracks, unmatched_detections)``."""
+        M, N = z_pred.shape[0], detections.shape[0]
+        gate = self.gate(detections.shape[1])
+        if M == 0 or N == 0:
+            return self.assigner(np.zeros((M, N)), gate)
+        L = _cholesky(S, "S")
+        d2 = _mahalanobis_from_cholesky(z_pred, L, detections)
+        if not self.log_det:
+            return self.assigner(d2, gate)
+        logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
+        cost = np.where(d2 <= gate, d2 + logdet[:, None], np.inf)
+        return self.assigner(cost, np.inf)
+
+
+class GreedyAssociator(GNNAssociator):
+    """Like :class:`GNNAssociator` but matches greedily, cheapest admissible pair first.
+
+    Parameters are those of :class:`GNNAssociator`.
+
+    The assignment of :func:`flowtrack.association.greedy_assign`; a lesson swaps it in to show
+    where greedy matching loses pairs or swaps identities.
+    """
+
+    def assigner(self, cost: np.ndarray, gate: float):
+        return _greedy_unchecked(cost, gate)
+
+
+class KalmanUpdater:
+    """Update the matched tracks: ``kf.update(Z, mask)`` with one detection per matched track."""
+
+    def update(self, kf: BatchKalmanFilter, detections: np.ndarray, matches: np.ndarray) -> None:
+        M = len(kf)
+        if M == 0 or matches.shape[0] == 0:
+            return
+        Z = np.full((M, kf.dim_z), np.nan)
+        Z[matches[:, 0]] = detections[matches[:, 1]]
+        mask = np.zeros(M, dtype=bool)
+        mask[matches[:, 0]] = True
+        kf.update(Z, mask)
+
+
+class SingleDetectionInitiator:
+    r"""Start a track from one detection: position = detection, velocity = flow velocity or 0.
+
+    .. math::  x_0 = \begin{bmatrix} z \\ v \end{bmatrix}, \qquad
+               P_0 = \begin{bmatrix} R & 0 \\ 0 & \sigma_v^2 I \end{bmatrix},
+
+    with :math:`v` the detection's scene-flow velocity and :math:`\sigma_v^2` = ``flow_velocity_var``
+    when velocities are given, else :math:`v = 0` and :math:`\sigma_v^2` = ``velocity_var``.
+
+    Parameters
+    ----------
+    R : numpy.ndarray, shape (dim, dim)
+        Measurement noise covariance (the position uncertainty of one detection).
+    velocity_var : float
+        Velocity variance without a velocity measurement (> 0): covers the speeds expected.
+    flow_velocity_var : float
+        Velocity variance of a scene-flow velocity (> 0), usually much smaller.
+    """
+
+    def __init__(self, R: np.ndarray, velocity_var: float, flow_velocity_var: float):
+        self.R = np.asarray(R, dtype=float)
+        self.dim = self.R.shape[0]
+        self.velocity_var = positive(velocity_var, "velocity_var")
+        self.flow_velocity_var = positive(flow_velocity_var, "flow_velocity_var")
+
+    def initiate(self, detections: np.ndarray, velocities: np.ndarray | None):
+        k, d = detections.shape
+        x0 = np.zeros((k, 2 * d))
+        x0[:, :d] = detections
+        P0 = np.zeros((k, 2 * d, 2 * d))
+        P0[:, :d, :d] = self.R
+        if velocities is None:
+            var = self.velocity_var
+        else:
+            x0[:, d:] = velocities
+            var = self.flow_velocity_var
+        P0[:, d:, d:] = var * np.eye(d)
+        return x0, P0
+
+
+class MissCountDeleter:
+    """Delete tentative tracks at their first miss and confirmed tracks after ``max_misses`` misses.
+
+    ``delete(hits, misses, confirmed)`` returns the bool mask
+    ``(misses > 0 & ~confirmed) | (misses > max_misses)``: a confirmed track survives up to
+    ``max_misses`` consecutive misses (coasting) and is deleted at the ``max_misses + 1``-th.
+    """
+
+    def __init__(self, max_misses: int = 3):
+        self.max_misses = positive_int(max_misses, "max_misses", minimum=0)
+
+    def delete(self, hits: np.ndarray, misses: np.ndarray, confirmed: np.ndarray) -> np.ndarray:
+        return ((misses > 0) & ~confirmed) | (misses > self.max_misses)
+
+
+# ----------------------------------------------------------------------------------------------------
+# tracker
+# ----------------------------------------------------------------------------------------------------
+class MultiObjectTracker:
+    r"""Constant-velocity multi-object tracker with gated global-nearest-neighbour association.
+
+    Parameters
+    ----------
+    dt : float
+        Time between frames (> 0).
+    q : float
+        Acceleration variance of the white-noise-acceleration model (>= 0).
+    r : float or array_like, shape (dim, dim)
+        Detection (position) noise variance (> 0) or covariance.
+    dim : int
+        Spatial dimension, 2 or 3 (1 also works).
+    gate_prob : float
+        Gate probability of the default :class:`GNNAssociator` (``0 < gate_prob < 1``).
+    min_hits : int
+        Detections needed to confirm a track (>= 1; 1 confirms at birth).
+    max_misses : int
+        Consecutive misses a confirmed track survives (>= 0); deleted at ``max_misses + 1``.
+    velocity_var : float, optional
+        Initial velocity variance of a track born without a velocity; default
+        :math:`(10\,\bar\sigma_r/\Delta t)^2` (ten noise standard deviations per frame,
+        :math:`\bar\sigma_r^2` the mean of ``diag(R)``).
+    flow_velocity_var : float, optional
+        Initial velocity variance of a track born with a scene-flow velocity; default
+        :math:`\bar\sigma_r^2/\Delta t^2`.
+    max_history : int, optional
+        Keep the posterior of the last ``max_history`` frames for :meth:`trajectories` (default:
+        all frames; the memory grows by about ``M * (2d + 4d^2) * 8`` bytes per frame).
+    predictor, associator, updater, initiator, deleter : optional
+        Replacement parts (see the module docstring); defaults :class:`KalmanPredictor`,
+        :class:`GNNAssociator` ``(gate_prob)``, :class:`KalmanUpdater`,
+        :class:`SingleDetectionInitiator`, :class:`MissCountDeleter` ``(max_misses)``. A custom
+        associator brings its own gate (``gate_prob`` is then unused), a custom deleter its own rule.
+
+    Attributes
+    ----------
+    kf : BatchKalmanFilter
+        The state of all live tracks (rows aligned with :attr:`tracks`).
+    frame : int
+        Index of the last processed frame (-1 before the first :meth:`step`).
+
+    Notes
+    -----
+    :meth:`step` returns the *reported* tracks, those with status ``"confirmed"`` or ``"coasting"``
+    (what a tracker outputs, as SORT does); :attr:`tracks` lists every live track, tentative ones
+    included. :meth:`trajectories` gives each track's posterior ``(frame, x, P)`` over its life.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> trk = MultiObjectTracker(dt=0.1, q=1.0, r=1e-4, dim=3, min_hits=2)
+    >>> trk.step(np.array([[0.0, 0.0, 1.0]]))      # first sighting: tentative, not reported
+    []
+    >>> [t.status for t in trk.tracks]
+    ['tentative']
+    >>> [(t.id, t.status, t.hits) for t in trk.step(np.array([[0.01, 0.0, 1.0]]))]
+    [(0, 'confirmed', 2)]
+    >>> [(t.id, t.status, t.misses) for t in trk.step(np.empty((0, 3)))]   # occluded
+    [(0, 'coasting', 1)]
+    """
+
+    def __init__(
+        self,
+        dt,
+        q,
+        r,
+        dim=2,
+        gate_prob=0.99,
+        min_hits=2,
+        max_misses=3,
+        *,
+        velocity_var=None,
+        flow_velocity_var=None,
+        predictor=None,
+        associator=None,
+        updater=None,
+        initiator=None,
+        deleter=None,
+        max_history=None,
+    ):
+        self.dt = positive(dt, "dt")
+        self.q = nonnegative(q, "q")
+        self.dim = positive_int(dim, "dim")
+        if self.dim > 3:
+            raise ValueError(f"dim must be 1, 2 or 3, got {self.dim}")
+        F, H, Q, R = constant_velocity_model(self.dt, self.q, r, self.dim)
+        self.min_hits = positive_int(min_hits, "min_hits")
+        self.max_misses = positive_int(max_misses, "max_misses", minimum=0)
+        self.gate_prob = _probability(gate_prob, "gate_prob")
+        sr2 = float(np.mean(np.diag(R)))
+        velocity_var = (100.0 * sr2 / self.dt**2) if velocity_var is None else velocity_var
+        flow_velocity_var = (sr2 / self.dt**2) if flow_velocity_var is None else flow_velocity_var
+        self.predictor = predictor if predictor is not None else KalmanPredictor()
+        self.associator = associator if associator is not None else GNNAssociator(self.gate_prob)
+        self.updater = updater if updater is not None else KalmanUpdater()
+        self.initiator = (
+            initiator
+            if initiator is not None
+            else SingleDetectionInitiator(R, velocity_var=velocity_var, flow_velocity_var=flow_velocity_var)
+        )
+        self.deleter = deleter if deleter is not None else MissCountDeleter(self.max_misses)
+        n = 2 * self.dim
+        self.kf = BatchKalmanFilter(F, H, Q, R, np.zeros((0, n)), np.eye(n))
+        self._ids = np.zeros(0, dtype=np.int64)
+        self._hits = np.zeros(0, dtype=np.int64)
+        self._misses = np.zeros(0, dtype=np.int64)
+        self._age = np.zeros(0, dtype=np.int64)
+        self._confirmed = np.zeros(0, dtype=bool)
+        self._next_id = 0
+        self.frame = -1
+        # one record per frame: (frame, ids (M,), x (M,n), P (M,n,n), status codes (M,))
+        if max_history is not None:
+            max_history = positive_int(max_history, "max_history")
+        self._log: deque[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
+        self._log = deque(maxlen=max_history)
+        self._snapshot: list[Track] = []
+
+    # -- input ---------------------------------------------------------------------------------------
+    def _check_detections(self, detections, velocities):
+        d = self.dim
+        Z = as_array(detections, "detections")
+        if Z.size == 0 and Z.ndim <= 1:
+            Z = Z.reshape(0, d)
+        if Z.ndim != 2 or Z.shape[1] != d:
+            raise ValueError(f"detections must have shape (N, {d}), got {Z.shape}")
+        V = None
+        if velocities is not None:
+            V = as_array(velocities, "velocities")
+            if V.size == 0 and V.ndim <= 1:
+                V = V.reshape(0, d)
+            if V.shape != Z.shape:
+                raise ValueError(
+                    f"velocities must have shape ({Z.shape[0]}, {d}) like detections, got {V.shape}"
+                )
+        return Z, V
+
+    # -- the loop ------------------------------------------------------------------------------------
+    def step(self, detections, velocities=None) -> list[Track]:
+        """Process one frame of detections; return the reported (confirmed or coasting) tracks.
+
+        Parameters
+        ----------
+        detections : array_like, shape (N, dim)
+            Detected object positions in this frame (``N`` may be 0).
+        velocities : array_like, shape (N, dim), optional
+            Per-detection velocity (e.g. the mean scene flow of the detection's cluster); used
+            only to initialise the velocity of tracks born from these detections.
+
+        Returns
+        -------
+        list of Track
+            Tracks with status ``"confirmed"`` or ``"coasting"``, in order of id.
+
+        Raises
+        ------
+        ValueError
+            ``detections`` or ``velocities`` of the wrong shape or containing NaN/inf.
+        """
+        Z, V = self._check_detections(detections, velocities)
+        self.frame += 1
+        kf = self.kf
+        # 1. predict; 2. associate; 3. update
+        z_pred, S = self.predictor.predict(kf)
+        matches, unmatched_tracks, unmatched_dets = self.associator.associate(z_pred, S, Z)
+        matches = np.asarray(matches, dtype=np.intp).reshape(-1, 2)
+        unmatched_tracks = np.asarray(unmatched_tracks, dtype=np.intp)
+        unmatched_dets = np.asarray(unmatched_dets, dtype=np.intp)
+        self.updater.update(kf, Z, matches)
+        # 4. bookkeeping: hits, misses, confirmation
+        matched = matches[:, 0]
+        self._hits[matched] += 1
+        self._misses[matched] = 0
+        self._misses[unmatched_tracks] += 1
+        self._age += 1
+        self._confirmed |= self._hits >= self.min_hits
+        # deletions (occlusions beyond max_misses, tentative tracks that missed)
+        dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
+        if dead.any():
+            keep = ~dead
+            kf.keep(keep)
+            self._ids, self._hits, self._misses, self._age, self._confirmed = (
+                a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed)
+            )
+        # births from unassigned detections
+        if unmatched_dets.size:
+            k = unmatched_dets.size
+            x0, P0 = self.initiator.initiate(Z[unmatched_dets], None if V is None else V[unmatched_dets])
+            kf.append(x0, P0)
+            self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + k)])
+            self._next_id += k
+            self._hits = np.concatenate([self._hits, np.ones(k, dtype=np.int64)])
+            self._misses = np.concatenate([self._misses, np.zeros(k, dtype=np.int64)])
+            self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
+            self._confirmed = np.concatenate([self._confirmed, np.full(k, self.min_hits <= 1)])
+        # record and report
+        xs = kf.x.copy()
+        Ps = kf.P.copy()
+        xs.flags.writeable = False
+        Ps.flags.writeable = False
+        codes = np.where(self._confirmed, np.where(self._misses > 0, 2, 1), 0)
+        self._log.append((self.frame, self._ids.copy(), xs, Ps, codes))
+        self._snapshot = list(
+            map(
+                Track,
+                self._ids.tolist(),
+                list(xs),
+                list(Ps),
+                [STATUSES[c] for c in codes.tolist()],
+                self._hits.tolist(),
+                self._misses.tolist(),
+                self._age.tolist(),
+            )
+        )
+        return [t for t in self._snapshot if t.status != "tentative"]
+
+    # -- accessors -----------------------------------------------------------------------------------
+    @property
+    def tracks(self) -> list[Track]:
+        """All live tracks after the last :meth:`step`, tentative ones included, in order of id."""
+        return list(self._snapshot)
+
+    def trajectories(
+        self, include_tentative: bool = False
+    ) -> dict[int, list[tuple[int, np.ndarray, np.ndarray]]]:
+        """Posterior history of every track: ``{id: [(frame, x (2*dim,), P (2*dim, 2*dim)), ...]}``.
+
+        Parameters
+        ----------
+        include_tentative : bool
+            Also list tracks that were never confirmed (clutter); by default only tracks that were
+            confirmed at some frame are returned, with their whole history (tentative frames too).
+
+        Returns
+        -------
+        dict
+            Track id -> list of ``(frame, x, P)`` in frame order, including deleted tracks; the
+            arrays are read-only. Frames in which the track coasted hold the prediction. With
+            ``max_history`` only the frames kept are listed.
+        """
+        out: dict[int, list[tuple[int, np.ndarray, np.ndarray]]] = {}
+        ever_confirmed: set[int] = set()
+        for frame, ids, xs, Ps, codes in self._log:
+            for k, tid in enumerate(ids.tolist()):
+                out.setdefault(tid, []).append((frame, xs[k], Ps[k]))
+                if codes[k]:
+                    ever_confirmed.add(tid)
+        if not include_tentative:
+            out = {tid: h for tid, h in out.items() if tid in ever_confirmed}
+        return out
+
+    def __repr__(self) -> str:
+        counts = {s: sum(t.status == s for t in self._snapshot) for s in STATUSES}
+        return (
+            f"MultiObjectTracker(dim={self.dim}, frame={self.frame}, "
+            + ", ".join(f"{k}={v}" for k, v in counts.items())
+            + ")"
+        )

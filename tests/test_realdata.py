@@ -1,0 +1,88 @@
+"""Tests of flowtrack.realdata (Middlebury 2014 Motorcycle shipped with scikit-image)."""
+
+import numpy as np
+import pytest
+from flowtrack.realdata import motorcycle_cloud, motorcycle_flow_case
+from scipy.spatial import cKDTree
+
+# numbers printed in the docstring of skimage.data.stereo_motorcycle (independent of the module)
+F, CX, CY, DOFFS, B_MM = 994.978, 311.193, 254.877, 31.086, 193.001
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    return motorcycle_cloud(step=4, return_pixels=True)
+
+
+def test_cloud_shape_and_depth_formula(cloud):
+    from skimage import data
+
+    P, C, pix = cloud
+    assert P.ndim == 2 and P.shape[1] == 3 and P.shape[0] > 10000
+    assert np.isfinite(P).all() and C.shape == P.shape and ((C >= 0) & (C <= 1)).all()
+    assert (pix % 4 == 0).all()
+    disp = data.stereo_motorcycle()[2].astype(float)
+    d = disp[pix[:, 0], pix[:, 1]]
+    Z = B_MM * F / (d + DOFFS) / 1000.0
+    np.testing.assert_allclose(P[:, 2], Z, rtol=1e-12)
+    np.testing.assert_allclose(P[:, 0], (pix[:, 1] - CX) / F * Z, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(P[:, 1], (pix[:, 0] - CY) / F * Z, rtol=1e-12, atol=1e-12)
+
+
+def test_metric_scale_plausible(cloud):
+    P, _, pix = cloud
+    # the motorcycle occupies roughly columns 95..690, rows 100..460 and is the nearest object
+    bike = (pix[:, 1] > 95) & (pix[:, 1] < 690) & (pix[:, 0] > 100) & (pix[:, 0] < 460) & (P[:, 2] < 2.7)
+    x = P[bike, 0]
+    width = np.percentile(x, 99) - np.percentile(x, 1)
+    assert 1.0 < width < 2.5
+    assert 1.5 < np.median(P[bike, 2]) < 3.0
+
+
+def _rigid(T):
+    R = T[:3, :3]
+    return np.allclose(R.T @ R, np.eye(3), atol=1e-12) and abs(np.linalg.det(R) - 1) < 1e-12
+
+
+def test_flow_case_consistent_with_transforms():
+    c = motorcycle_flow_case(seed=2, noise=0.0)
+    X, v, lab, dt = c["clean_t"], c["gt_flow"], c["labels_t"], c["dt"]
+    Tg, Tp = c["T_global"], c["T_part"]
+    assert _rigid(Tg) and _rigid(Tp)
+    assert 100 < lab.sum() < 0.5 * lab.size
+    np.testing.assert_array_equal(c["points_t"], X)
+    moved = X + v * dt
+    rest = lab == 0
+    np.testing.assert_allclose(moved[rest], X[rest] @ Tg[:3, :3].T + Tg[:3, 3], atol=1e-12)
+    Y = X[~rest] @ Tp[:3, :3].T + Tp[:3, 3]
+    np.testing.assert_allclose(moved[~rest], Y @ Tg[:3, :3].T + Tg[:3, 3], atol=1e-12)
+    # t+1 points are moved cloud points, but not index-aligned with points_t
+    P0, _ = motorcycle_cloud(step=4)
+    both = np.vstack([P0, P0 @ Tp[:3, :3].T + Tp[:3, 3]])  # each point moves by Tg or by Tg Tp
+    tree = cKDTree(both @ Tg[:3, :3].T + Tg[:3, 3])
+    dist, _ = tree.query(c["points_t1"])
+    assert dist.max() < 1e-9
+    assert not np.allclose(c["points_t1"][: len(moved)], moved[: len(c["points_t1"])])
+
+
+def test_flow_case_noise_and_determinism():
+    a = motorcycle_flow_case(seed=1, noise=0.002, step=8)
+    b = motorcycle_flow_case(seed=1, noise=0.002, step=8)
+    np.testing.assert_array_equal(a["points_t1"], b["points_t1"])
+    e = a["points_t"] - a["clean_t"]
+    assert abs(e.std() - 0.002) < 0.0002
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "word"),
+    [
+        ({"noise": -1.0}, ValueError, "noise"),
+        ({"dt": 0.0}, ValueError, "dt"),
+        ({"keep": 1.5}, ValueError, "keep"),
+        ({"seed": 1.5}, TypeError, "seed"),
+        ({"step": 0}, ValueError, "step"),
+    ],
+)
+def test_bad_inputs(kwargs, exc, word):
+    with pytest.raises(exc, match=word):
+        motorcycle_flow_case(**kwargs)

@@ -1,0 +1,416 @@
+"""Tests of flowtrack.tracking: scripted scenarios, metric thresholds, oracles, swappable parts."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+from flowtrack.association import chi2_gate
+from flowtrack.kalman import KalmanFilter, constant_velocity_model
+from flowtrack.metrics import clear_mot
+from flowtrack.tracking import (
+    GNNAssociator,
+    GreedyAssociator,
+    MissCountDeleter,
+    MultiObjectTracker,
+    Track,
+)
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def simulate(n_objects, n_frames, dt, sigma, rng, *, dim=2, extent=20.0, speed=1.0, accel_std=0.0):
+    """Constant-velocity (optionally jittered) ground truth: array (T, K, dim) of positions, velocities."""
+    p = rng.uniform(0.2 * extent, 0.8 * extent, size=(n_objects, dim))
+    v = rng.normal(size=(n_objects, dim))
+    v *= speed / np.linalg.norm(v, axis=1, keepdims=True)
+    P, V = [], []
+    for _ in range(n_frames):
+        P.append(p.copy())
+        V.append(v.copy())
+        a = accel_std * rng.normal(size=v.shape)
+        p = p + v * dt + 0.5 * a * dt**2
+        v = v + a * dt
+    return np.array(P), np.array(V)
+
+
+def run(tracker, frames, velocities=None):
+    """Feed frames; return the reported output per frame as {track_id: position}."""
+    out = []
+    for t, Z in enumerate(frames):
+        V = None if velocities is None else velocities[t]
+        out.append({tr.id: tr.position.copy() for tr in tracker.step(Z, V)})
+    return out
+
+
+def nearest_ids(gt_positions, hyp_frames, max_dist):
+    """Independent identity check: per object, the id of the nearest reported track in each frame."""
+    T, K, _ = gt_positions.shape
+    ids = np.full((T, K), -1)
+    for t in range(T):
+        for k in range(K):
+            best, best_d = -1, max_dist
+            for tid, pos in hyp_frames[t].items():
+                d = np.linalg.norm(pos - gt_positions[t, k])
+                if d < best_d:
+                    best, best_d = tid, d
+            ids[t, k] = best
+    return ids
+
+
+# ----------------------------------------------------------------------------- basic behaviour
+
+
+def test_single_track_equals_standalone_kalman_filter(rng):
+    """Oracle: one object, the tracker's track must follow a plain KalmanFilter exactly."""
+    dt, q, r = 0.1, 0.5, 0.01
+    vel_var = 4.0
+    trk = MultiObjectTracker(dt, q, r, dim=2, min_hits=1, velocity_var=vel_var)
+    F, H, Q, R = constant_velocity_model(dt, q, r, dim=2)
+    truth, _ = simulate(1, 30, dt, 0.1, rng)
+    Z = truth[:, 0] + 0.1 * rng.normal(size=truth[:, 0].shape)
+    P0 = np.diag([r, r, vel_var, vel_var])
+    kf = KalmanFilter(F, H, Q, R, np.r_[Z[0], 0.0, 0.0], P0)
+    trk.step(Z[:1])
+    for z in Z[1:]:
+        kf.predict()
+        kf.update(z)
+        (track,) = trk.step(z[None])
+        assert track.id == 0
+        np.testing.assert_allclose(track.x, kf.x, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(track.P, kf.P, rtol=1e-9, atol=1e-14)
+    assert track.hits == len(Z) and track.misses == 0 and track.age == len(Z) - 1
+
+
+def test_confirmation_and_statuses():
+    trk = MultiObjectTracker(1.0, 0.01, 0.01, min_hits=3, max_misses=2)
+    z = np.array([[0.0, 0.0]])
+    assert trk.step(z) == []
+    assert [(t.status, t.hits) for t in trk.tracks] == [("tentative", 1)]
+    assert trk.step(z) == []
+    assert [(t.status, t.hits) for t in trk.tracks] == [("tentative", 2)]
+    out = trk.step(z)
+    assert [(t.id, t.status, t.hits) for t in out] == [(0, "confirmed", 3)]
+    out = trk.step(np.empty((0, 2)))
+    assert [(t.status, t.misses) for t in out] == [("coasting", 1)]
+    out = trk.step([])  # an empty list is an empty frame too
+    assert [(t.status, t.misses) for t in out] == [("coasting", 2)]
+    assert trk.step(np.empty((0, 2))) == []  # third miss > max_misses = 2: deleted
+    assert trk.tracks == []
+
+
+def test_tentative_track_deleted_at_first_miss():
+    trk = MultiObjectTracker(1.0, 0.01, 0.01, min_hits=2)
+    trk.step(np.array([[0.0, 0.0]]))
+    trk.step(np.empty((0, 2)))
+    assert trk.tracks == []
+    out = trk.step(np.array([[0.0, 0.0]]))
+    assert out == [] and [t.id for t in trk.tracks] == [1]  # ids never reused
+
+
+def test_min_hits_one_confirms_at_birth():
+    trk = MultiObjectTracker(1.0, 0.01, 0.01, min_hits=1)
+    out = trk.step(np.array([[0.0, 0.0], [5.0, 5.0]]))
+    assert [(t.id, t.status) for t in out] == [(0, "confirmed"), (1, "confirmed")]
+
+
+def test_track_snapshots_are_read_only_and_independent():
+    trk = MultiObjectTracker(1.0, 0.01, 0.01, min_hits=1)
+    (t0,) = trk.step(np.array([[0.0, 0.0]]))
+    x_before = t0.x.copy()
+    with pytest.raises(ValueError):
+        t0.x[0] = 5.0
+    trk.step(np.array([[1.0, 0.0]]))
+    np.testing.assert_array_equal(t0.x, x_before)
+    assert isinstance(t0, Track) and t0.position.shape == (2,) and t0.velocity.shape == (2,)
+
+
+@pytest.mark.parametrize("max_misses", [1, 3, 5])
+def test_occlusion_semantics(rng, max_misses):
+    """Occluded for max_misses frames: same id afterwards; max_misses + 1 frames: a new id."""
+    dt, sigma = 0.1, 0.02
+    for gap, same in [(max_misses - 1, True), (max_misses, True), (max_misses + 1, False)]:
+        trk = MultiObjectTracker(dt, 0.1, sigma**2, min_hits=2, max_misses=max_misses, velocity_var=4.0)
+        truth, _ = simulate(1, 30, dt, sigma, rng)
+        ids = []
+        for t in range(30):
+            occluded = 10 <= t < 10 + gap
+            Z = np.empty((0, 2)) if occluded else truth[t] + sigma * rng.normal(size=(1, 2))
+            out = trk.step(Z)
+            if occluded:
+                assert all(tr.status == "coasting" for tr in out)
+            elif t >= 1:
+                assert len(out) <= 1
+                ids.append(out[0].id if out else None)
+        first_id = ids[0]
+        final_id = ids[-1]
+        assert first_id == 0
+        assert (final_id == first_id) is same, (max_misses, gap, ids)
+
+
+def test_crossing_objects_keep_their_ids(rng):
+    """Two objects crossing at different speeds: each keeps one id all along."""
+    dt, sigma, T = 0.1, 0.05, 60
+    t = np.arange(T) * dt
+    a = np.stack([-3.0 + 1.0 * t, -1.5 + 0.5 * t], axis=1)  # crosses (0, 0) at t = 3
+    b = np.stack([3.0 - 1.0 * t, -3.0 + 1.0 * t], axis=1)  # faster, also through (0, 0) at t = 3
+    assert np.allclose(a[30], 0.0) and np.allclose(b[30], 0.0)
+    truth = np.stack([a, b], axis=1)
+    for trial in range(5):
+        trk = MultiObjectTracker(dt, 1.0, sigma**2, velocity_var=9.0)
+        frames = truth + sigma * rng.normal(size=truth.shape)
+        hyp = run(trk, frames)
+        ids = nearest_ids(truth, hyp, max_dist=0.5)
+        # away from the crossing (where "nearest" is ambiguous) each object has one id throughout
+        clear = np.linalg.norm(truth[:, 0] - truth[:, 1], axis=1) > 1.0
+        clear[0] = False  # first frame: tracks are tentative, not reported
+        assert clear[1:25].all() and clear[36:].all()
+        for k in range(2):
+            seen = set(ids[clear, k].tolist())
+            assert len(seen) == 1 and -1 not in seen, (trial, k, ids[:, k])
+        assert ids[clear, 0][0] != ids[clear, 1][0]
+        m = clear_mot([dict(enumerate(f)) for f in truth], hyp, max_dist=0.5)
+        assert m["id_switches"] == 0
+
+
+def test_greedy_associator_loses_a_pair_that_gnn_keeps():
+    """Greedy takes the cheapest pair and leaves a detection unmatched; the optimal assignment does not."""
+    # tracks at x = 0 and x = 2; detections at 1.1 (admissible for both, cheaper for track 1) and
+    # 3.4 (admissible for track 1 only).
+    kwargs = dict(dt=1.0, q=1e-6, r=0.25, min_hits=1, velocity_var=1e-6, gate_prob=0.99)
+    runs = {}
+    for name, assoc in [("gnn", GNNAssociator(0.99)), ("greedy", GreedyAssociator(0.99))]:
+        trk = MultiObjectTracker(**kwargs, associator=assoc)
+        for _ in range(20):
+            trk.step(np.array([[0.0, 0.0], [2.0, 0.0]]))
+        x_keep, P_keep = trk.kf.x.copy(), trk.kf.P.copy()
+        trk.kf.predict()
+        S = trk.kf.predicted_measurements()[1]  # what the next step will see
+        trk.kf.x, trk.kf.P = x_keep, P_keep
+        trk_before = [t.id for t in trk.tracks]
+        out = trk.step(np.array([[1.1, 0.0], [3.4, 0.0]]))
+        runs[name] = (trk_before, out, trk, S)
+    # oracle on the costs (S isotropic and equal for both tracks): track 1 -> 1.1 is the cheapest
+    # pair, 3.4 is admissible for track 1 only
+    S = runs["gnn"][3]
+    s = S[0, 0, 0]
+    np.testing.assert_allclose(S, s * np.broadcast_to(np.eye(2), S.shape), rtol=1e-9)
+    gate = chi2_gate(2, 0.99)
+    c01, c11, c12, c02 = 1.1**2 / s, 0.9**2 / s, 1.4**2 / s, 3.4**2 / s
+    assert c11 < c01 <= gate and c12 <= gate < c02
+    gnn_out = runs["gnn"][1]
+    assert all(t.misses == 0 for t in gnn_out) and len(gnn_out) == 2
+    # greedy: track 1 took 1.1, track 0 missed, 3.6 started a new track
+    greedy_status = {t.id: t.misses for t in runs["greedy"][2].tracks}
+    assert greedy_status[0] == 1 and greedy_status[1] == 0 and 2 in greedy_status
+
+
+def test_log_det_cost_prevents_a_newborn_track_stealing_a_detection():
+    """An outlier just outside the gate starts a tentative track with a large S; with the pure
+    Mahalanobis cost that newborn steals the next detection from the established track."""
+    dt, sigma = 0.1, 0.05
+    gate = chi2_gate(2, 0.99)
+    results = {}
+    for log_det in (True, False):
+        trk = MultiObjectTracker(
+            dt, 0.01, sigma**2, min_hits=2, velocity_var=4.0, associator=GNNAssociator(0.99, log_det)
+        )
+        for _ in range(30):
+            trk.step(np.array([[0.0, 0.0]]))  # a static, well-established track (id 0)
+        probe = copy.deepcopy(trk.kf)
+        probe.predict()
+        S0 = probe.predicted_measurements()[1][0]
+        off = 1.05 * np.sqrt(gate * S0[0, 0])  # just outside track 0's gate
+        trk.step(np.array([[off, 0.0]]))  # track 0 coasts, track 1 is born at `off`
+        assert [(t.id, t.status) for t in trk.tracks] == [(0, "coasting"), (1, "tentative")]
+        z = np.array([0.6 * off, 0.0])  # next detection: between them, inside both gates
+        probe = copy.deepcopy(trk.kf)
+        probe.predict()
+        zp, S = probe.predicted_measurements()
+        d2 = [(z - zp[i]) @ np.linalg.inv(S[i]) @ (z - zp[i]) for i in range(2)]
+        nll = [d2[i] + np.log(np.linalg.det(S[i])) for i in range(2)]
+        assert d2[1] < d2[0] <= gate and nll[0] < nll[1]  # the two costs disagree
+        trk.step(z[None])
+        results[log_det] = {t.id: t.misses for t in trk.tracks}
+    assert results[True] == {0: 0}  # established track got it; the newborn missed and was deleted
+    assert results[False] == {0: 2, 1: 0}  # without log det S the newborn stole the detection
+
+
+# ----------------------------------------------------------------------------- clutter and metrics
+
+
+def test_clutter_is_never_confirmed(rng):
+    dt, sigma, extent = 0.1, 0.05, 200.0
+    trk = MultiObjectTracker(dt, 1.0, sigma**2, min_hits=2, velocity_var=4.0)
+    confirmed = 0
+    for _ in range(60):
+        Z = rng.uniform(0, extent, size=(rng.poisson(5), 2))
+        confirmed += len(trk.step(Z))
+    assert confirmed == 0
+    assert trk.trajectories() == {}
+    assert len(trk.trajectories(include_tentative=True)) > 200
+    # the test can fail: with min_hits=1 the same clutter is reported
+    trk1 = MultiObjectTracker(dt, 1.0, sigma**2, min_hits=1, velocity_var=4.0)
+    assert len(trk1.step(rng.uniform(0, extent, size=(5, 2)))) == 5
+
+
+def make_disturbed_scene(rng, *, n_objects=5, n_frames=100, dim=2, dt=0.1, sigma=0.05, p_miss=0.1,
+                         clutter_rate=2.0, extent=20.0):
+    truth, vel = simulate(n_objects, n_frames, dt, sigma, rng, dim=dim, extent=extent, accel_std=0.5)
+    frames, flows, gt = [], [], []
+    for t in range(n_frames):
+        seen = rng.random(n_objects) >= p_miss
+        Z = truth[t, seen] + sigma * rng.normal(size=(seen.sum(), dim))
+        Vz = vel[t, seen] + 0.1 * rng.normal(size=(seen.sum(), dim))
+        n_c = rng.poisson(clutter_rate)
+        C = rng.uniform(0, extent, size=(n_c, dim))
+        Vc = rng.normal(size=(n_c, dim))
+        order = rng.permutation(len(Z) + n_c)
+        frames.append(np.concatenate([Z, C])[order])
+        flows.append(np.concatenate([Vz, Vc])[order])
+        gt.append({k: truth[t, k] for k in range(n_objects)})
+    return truth, frames, flows, gt
+
+
+@pytest.mark.parametrize("use_flow", [False, True])
+def test_five_objects_with_misses_and_clutter_mota_idf1(rng, use_flow):
+    dt, sigma = 0.1, 0.05
+    for seed in range(3):
+        r = np.random.default_rng(seed)
+        _, frames, flows, gt = make_disturbed_scene(r, dt=dt, sigma=sigma)
+        trk = MultiObjectTracker(dt, 1.0, sigma**2, min_hits=2, max_misses=3, velocity_var=4.0)
+        hyp = run(trk, frames, flows if use_flow else None)
+        m = clear_mot(gt, hyp, max_dist=0.5)
+        assert m["mota"] >= 0.9, (seed, m)
+        assert m["idf1"] >= 0.9, (seed, m)
+
+
+def test_three_dimensional_tracking(rng):
+    dt, sigma = 0.05, 0.005
+    _, frames, flows, gt = make_disturbed_scene(
+        rng, n_objects=4, n_frames=80, dim=3, dt=dt, sigma=sigma, p_miss=0.1, clutter_rate=1.0, extent=1.0
+    )
+    trk = MultiObjectTracker(dt, 1.0, sigma**2, dim=3, velocity_var=4.0)
+    hyp = run(trk, frames, flows)
+    m = clear_mot(gt, hyp, max_dist=0.05)
+    assert m["mota"] >= 0.9 and m["idf1"] >= 0.9, m
+    assert m["id_switches"] == 0
+    for t in trk.tracks:
+        assert t.x.shape == (6,) and t.P.shape == (6, 6)
+
+
+def test_flow_velocity_initialises_new_tracks():
+    dt, sigma = 0.1, 0.05
+    trk = MultiObjectTracker(dt, 1.0, sigma**2, dim=3, min_hits=1, velocity_var=9.0, flow_velocity_var=0.01)
+    v = np.array([[0.3, -0.2, 0.1], [0.0, 0.5, 0.0]])
+    out = trk.step(np.array([[0.0, 0.0, 1.0], [2.0, 0.0, 1.0]]), velocities=v)
+    for tr, vi in zip(out, v):
+        np.testing.assert_array_equal(tr.velocity, vi)
+        np.testing.assert_allclose(tr.P[3:, 3:], 0.01 * np.eye(3))
+        np.testing.assert_allclose(tr.P[:3, :3], sigma**2 * np.eye(3))
+    out = trk.step(np.array([[5.0, 5.0, 5.0]]))  # no velocities: zero velocity, large variance
+    new = next(t for t in trk.tracks if t.id == 2)
+    np.testing.assert_array_equal(new.velocity, 0.0)
+    np.testing.assert_allclose(new.P[3:, 3:], 9.0 * np.eye(3))
+
+
+def test_trajectories_history():
+    trk = MultiObjectTracker(1.0, 0.01, 0.01, min_hits=2, max_misses=1)
+    trk.step(np.array([[0.0, 0.0]]))
+    trk.step(np.array([[1.0, 0.0]]))
+    trk.step(np.empty((0, 2)))
+    trk.step(np.empty((0, 2)))  # deleted here
+    trk.step(np.array([[9.0, 9.0]]))  # a tentative track, never confirmed
+    traj = trk.trajectories()
+    assert list(traj) == [0]
+    frames = [f for f, _, _ in traj[0]]
+    assert frames == [0, 1, 2]
+    _, x, P = traj[0][1]
+    assert x.shape == (4,) and P.shape == (4, 4)
+    np.testing.assert_allclose(traj[0][0][1][:2], [0.0, 0.0])
+    assert set(trk.trajectories(include_tentative=True)) == {0, 1}
+
+
+def test_track_ids_are_never_reused(rng):
+    trk = MultiObjectTracker(0.1, 1.0, 0.01, min_hits=1, max_misses=0)
+    seen = []
+    for _ in range(20):
+        for t in trk.step(rng.uniform(0, 1000, size=(3, 2))):
+            seen.append(t.id)
+    assert seen == list(range(60))
+
+
+def test_custom_deleter_is_used():
+    class NeverDelete:
+        def delete(self, hits, misses, confirmed):
+            return np.zeros(hits.shape, dtype=bool)
+
+    trk = MultiObjectTracker(1.0, 0.01, 0.01, min_hits=1, deleter=NeverDelete())
+    trk.step(np.array([[0.0, 0.0]]))
+    for _ in range(10):
+        out = trk.step(np.empty((0, 2)))
+    assert [(t.id, t.misses) for t in out] == [(0, 10)]
+    d = MissCountDeleter(2)
+    mask = d.delete(np.array([1, 5, 5]), np.array([1, 2, 3]), np.array([False, True, True]))
+    assert mask.tolist() == [True, False, True]
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        (dict(dt=0.0, q=1.0, r=1.0), "dt"),
+        (dict(dt=-0.1, q=1.0, r=1.0), "dt"),
+        (dict(dt=0.1, q=-1.0, r=1.0), "q"),
+        (dict(dt=0.1, q=1.0, r=0.0), "r"),
+        (dict(dt=0.1, q=1.0, r=1.0, dim=4), "dim"),
+        (dict(dt=0.1, q=1.0, r=1.0, gate_prob=1.0), "gate_prob"),
+        (dict(dt=0.1, q=1.0, r=1.0, min_hits=0), "min_hits"),
+        (dict(dt=0.1, q=1.0, r=1.0, max_misses=-1), "max_misses"),
+    ],
+)
+def test_constructor_rejects_bad_arguments(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        MultiObjectTracker(**kwargs)
+
+
+def test_step_rejects_bad_detections():
+    trk = MultiObjectTracker(0.1, 1.0, 0.01, dim=3)
+    with pytest.raises(ValueError, match="detections"):
+        trk.step(np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="detections"):
+        trk.step(np.array([[0.0, np.nan, 1.0]]))
+    with pytest.raises(ValueError, match="detections"):
+        trk.step(np.zeros(3))
+    with pytest.raises(ValueError, match="velocities"):
+        trk.step(np.zeros((2, 3)), velocities=np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="velocities"):
+        trk.step(np.zeros((1, 3)), velocities=np.array([[np.inf, 0.0, 0.0]]))
+    assert trk.frame == -1  # rejected frames are not counted
+
+
+def test_max_history_keeps_the_last_frames():
+    trk = MultiObjectTracker(1.0, 0.01, 0.01, min_hits=1, max_history=3)
+    for t in range(10):
+        trk.step(np.array([[float(t), 0.0]]))
+    assert [f for f, _, _ in trk.trajectories()[0]] == [7, 8, 9]
+    with pytest.raises(ValueError, match="max_history"):
+        MultiObjectTracker(1.0, 0.01, 0.01, max_history=0)
+
+
+def test_custom_associator_returning_lists():
+    class FirstComeFirstServed:
+        """Match track i to detection i, whatever the cost (plain lists returned)."""
+
+        def associate(self, z_pred, S, detections):
+            k = min(len(z_pred), len(detections))
+            return [[i, i] for i in range(k)], list(range(k, len(z_pred))), list(range(k, len(detections)))
+
+    trk = MultiObjectTracker(1.0, 0.01, 0.01, min_hits=1, associator=FirstComeFirstServed())
+    trk.step(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    out = trk.step(np.array([[10.0, 0.0], [0.0, 0.0]]))  # swapped order: ids follow the order
+    assert [t.id for t in out] == [0, 1]
+    assert out[0].position[0] > 5.0 and out[1].position[0] < 5.0
