@@ -10,8 +10,9 @@ VENV := .venv
 PY := $(VENV)/bin/python
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 STAMP := $(VENV)/.flowtrack-installed
-# Debian packages the Python stack needs at run time (open3d loads libusb-1.0 and libgomp).
-APT_PACKAGES := libusb-1.0-0 libgomp1
+# Debian packages the Python stack needs: open3d loads libusb-1.0 and libgomp; scikit-sparse
+# (CHOLMOD, the "fast" extra) builds against SuiteSparse.
+APT_PACKAGES := libusb-1.0-0 libgomp1 libsuitesparse-dev
 OUT ?= out
 
 .PHONY: demo test sysdeps lint bench clean
@@ -27,7 +28,7 @@ $(STAMP): pyproject.toml
 	@$(MAKE) --no-print-directory sysdeps
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e ".[dev]"
+	$(PY) -m pip install -q -e ".[dev,lessons,fast]"
 	@touch $@
 
 demo: $(STAMP)

@@ -31,8 +31,9 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
-from flowtrack.variational import grid_laplacian, variational_scene_flow  # noqa: E402
 from scipy.sparse.linalg import cg  # noqa: E402
+
+from flowtrack.variational import grid_laplacian, variational_scene_flow  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

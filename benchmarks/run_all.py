@@ -36,7 +36,8 @@ def main() -> int:
         "Every number below is a ratio (or an absolute figure beside its peer) measured in one run on the",
         "machine named here; rerun with `make bench`. Targets come from the issues.",
         "",
-        f"- machine: {platform.machine()}, {platform.processor() or 'unknown CPU'}, Python {platform.python_version()}",
+        f"- machine: {platform.machine()}, {platform.processor() or 'unknown CPU'}, "
+        f"Python {platform.python_version()}",
         f"- date: {time.strftime('%Y-%m-%d')}",
         "",
     ]

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from flowtrack.association import assign, chi2_gate, hungarian, mahalanobis_cost
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
+
+from flowtrack.association import assign, chi2_gate, greedy_assign, hungarian, mahalanobis_cost
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -153,6 +154,25 @@ def test_assign_against_brute_force(rng):
         assert total == pytest.approx(best_total, rel=1e-9, abs=1e-9), (cost, gate)
 
 
+def test_assign_sparse_gates_against_brute_force(rng):
+    """Sparse admissible graphs: isolated pairs mixed with contested components."""
+    isolated_seen = 0
+    for _ in range(300):
+        M, N = rng.integers(1, 7, size=2)
+        cost = rng.uniform(0, 10, size=(M, N))
+        cost[rng.random((M, N)) > 0.25] = 100.0
+        gate = 10.0
+        ok = cost <= gate
+        isolated_seen += int(np.sum(ok & (ok.sum(1, keepdims=True) == 1) & (ok.sum(0, keepdims=True) == 1)))
+        result = assign(cost, gate)
+        check_valid(result, cost, gate)
+        matches = result[0]
+        k, best_total = brute_force_assignment(cost, gate)
+        assert len(matches) == k
+        assert cost[matches[:, 0], matches[:, 1]].sum() == pytest.approx(best_total, abs=1e-9)
+    assert isolated_seen > 50  # the isolated-pair shortcut was exercised
+
+
 def test_assign_differs_from_solve_then_discard():
     cost = np.array([[0.0, 6.0], [6.0, 11.0]])
     gate = 10.0
@@ -214,6 +234,38 @@ def test_assign_rejects_bad_input():
         assign(np.zeros(3))
     with pytest.raises(ValueError, match="gate"):
         assign(np.zeros((2, 2)), gate=np.nan)
+
+
+def test_greedy_assign_is_a_valid_gated_matching_and_never_beats_assign(rng):
+    worse = 0
+    for _ in range(200):
+        M, N = rng.integers(0, 6, size=2)
+        cost = rng.uniform(0, 10, size=(M, N))
+        gate = 6.0
+        g = greedy_assign(cost, gate)
+        check_valid(g, cost, gate)
+        k_opt, best = brute_force_assignment(cost, gate)
+        k_g = len(g[0])
+        total_g = cost[g[0][:, 0], g[0][:, 1]].sum() if k_g else 0.0
+        # greedy is a maximal matching: at least half the optimal cardinality
+        assert 2 * k_g >= k_opt and k_g <= k_opt
+        if k_g == k_opt:
+            assert total_g >= best - 1e-9
+        worse += (k_g < k_opt) or (total_g > best + 1e-9)
+        # independent oracle for greedy itself: repeatedly take the global minimum
+        C = np.where(cost <= gate, cost, np.inf)
+        pairs = []
+        while C.size and np.isfinite(C).any():
+            i, j = np.unravel_index(np.argmin(C), C.shape)
+            pairs.append((int(i), int(j)))
+            C[i, :] = np.inf
+            C[:, j] = np.inf
+        assert sorted(pairs) == sorted(map(tuple, g[0].tolist()))
+    assert worse > 0  # greedy is sometimes suboptimal
+    m, _, _ = greedy_assign(np.array([[1.0, 2.0], [2.0, 9.0]]))
+    assert m.tolist() == [[0, 0], [1, 1]]
+    with pytest.raises(ValueError, match="cost"):
+        greedy_assign(np.array([[np.nan]]))
 
 
 # ----------------------------------------------------------------------------- hungarian

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter as FPKalmanFilter
-from flowtrack.bayes import GridBayesFilter, gaussian_likelihood, linear_gaussian_kernel
 from scipy.stats import multivariate_normal, norm
+
+from flowtrack.bayes import GridBayesFilter, gaussian_likelihood, linear_gaussian_kernel
 
 
 def filterpy_filter(F, H, Q, R, x0, P0):

@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
+from sklearn.metrics import adjusted_rand_score
+
 from flowtrack.clustering import cluster_motion, motion_affinity_graph, tracks_from_clusters
 from flowtrack.synth import make_scene
-from sklearn.metrics import adjusted_rand_score
 
 
 @pytest.fixture(scope="module")

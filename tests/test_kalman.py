@@ -7,6 +7,10 @@ import pytest
 import scipy.linalg
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter as FPKalmanFilter
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.distance import mahalanobis as scipy_mahalanobis
+
 from flowtrack.kalman import (
     BatchKalmanFilter,
     KalmanFilter,
@@ -15,9 +19,6 @@ from flowtrack.kalman import (
     steady_state_covariance,
     white_noise_acceleration_Q,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
-from scipy.spatial.distance import mahalanobis as scipy_mahalanobis
 
 SYLLABUS_DETECTIONS = [(0.0, 0.0), (0.9, 0.1), (2.1, 0.2), (3.0, 0.1)]
 
@@ -272,7 +273,7 @@ def test_covariance_stays_symmetric_pd_over_1e5_steps():
 # ---------------------------------------------------------------------------------------------------
 # BatchKalmanFilter
 # ---------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("n,m", [(4, 2), (3, 1), (6, 3)])
+@pytest.mark.parametrize("n,m", [(4, 2), (3, 1), (6, 3), (6, 4)])
 def test_batch_matches_loop_of_single_filters(n, m):
     rng = np.random.default_rng(n * 10 + m)
     F, H, Q, R = random_model(rng, n, m)
@@ -312,6 +313,31 @@ def test_batch_matches_loop_of_single_filters(n, m):
             assert list(idx) == list(range(len(singles), len(singles) + 3))
             singles += [KalmanFilter(F, H, Q, R, xi, np.eye(n)) for xi in new_x]
         assert len(bkf) == len(singles)
+
+
+@pytest.mark.parametrize("rows", [[0, 2], [3, 1], [1, 2]])
+def test_batch_selection_H_matches_single_filters(rows, rng):
+    # H = rows of the identity takes the slicing path of BatchKalmanFilter.update
+    F, _, Q, _ = constant_velocity_model(0.1, 1.0, 0.5, dim=2)
+    H = np.eye(4)[rows]
+    R = random_spd(rng, 2)
+    M = 7
+    x0 = rng.normal(size=(M, 4))
+    bkf = BatchKalmanFilter(F, H, Q, R, x0, np.eye(4))
+    singles = [KalmanFilter(F, H, Q, R, x, np.eye(4)) for x in x0]
+    for _ in range(6):
+        bkf.predict()
+        Z = rng.normal(size=(M, 2))
+        mask = rng.random(M) < 0.7
+        P_before = bkf.P.copy()
+        bkf.update(Z, mask)
+        assert np.array_equal(bkf.P[~mask], P_before[~mask])  # unmeasured tracks untouched
+        for i, f in enumerate(singles):
+            f.predict()
+            f.update(Z[i] if mask[i] else None)
+            close(bkf.x[i], f.x)
+            close(bkf.P[i], f.P)
+            close(bkf.log_likelihood[i], f.log_likelihood)
 
 
 def test_batch_full_update_and_shared_P0(rng):

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+
 from flowtrack.metrics import (
     clear_mot,
     iou_distance,
@@ -56,18 +57,52 @@ def test_tud_campus_matches_the_published_readme_table():
     [
         # py-motmetrics' own test_motchallenge_files (6 digits): idf1 idp idr recall precision
         # GT MT PT ML FP FN IDs FM mota motp
-        ("TUD-Campus", [0.557659, 0.729730, 0.451253, 0.582173, 0.941441, 8, 1, 6, 1, 13, 150, 7, 7,
-                        0.526462, 0.277201]),
-        ("TUD-Stadtmitte", [0.644619, 0.819760, 0.531142, 0.608997, 0.939920, 10, 5, 4, 1, 45, 452, 7, 6,
-                            0.564014, 0.345904]),
+        (
+            "TUD-Campus",
+            [0.557659, 0.729730, 0.451253, 0.582173, 0.941441, 8, 1, 6, 1, 13, 150, 7, 7, 0.526462, 0.277201],
+        ),
+        (
+            "TUD-Stadtmitte",
+            [
+                0.644619,
+                0.819760,
+                0.531142,
+                0.608997,
+                0.939920,
+                10,
+                5,
+                4,
+                1,
+                45,
+                452,
+                7,
+                6,
+                0.564014,
+                0.345904,
+            ],
+        ),
     ],
 )
 def test_mot15_sequences_match_py_motmetrics_test_values(sequence, expected):
     gt, hyp = mot_challenge_tracks(sequence)
     m = clear_mot(gt, hyp, 0.5, distance="iou")
-    keys = ["idf1", "idp", "idr", "recall", "precision", "num_unique_objects", "mostly_tracked",
-            "partially_tracked", "mostly_lost", "fp", "fn", "id_switches", "num_fragmentations",
-            "mota", "motp"]
+    keys = [
+        "idf1",
+        "idp",
+        "idr",
+        "recall",
+        "precision",
+        "num_unique_objects",
+        "mostly_tracked",
+        "partially_tracked",
+        "mostly_lost",
+        "fp",
+        "fn",
+        "id_switches",
+        "num_fragmentations",
+        "mota",
+        "motp",
+    ]
     np.testing.assert_allclose([m[k] for k in keys], expected, atol=1e-6)
 
 
@@ -112,8 +147,10 @@ def test_one_identity_change_is_one_switch():
 
 def test_exchanging_two_labels_is_two_switches():
     gt = [{1: [0.0, 0.0], 2: [10.0, 0.0]} for _ in range(4)]
-    hyp = [{"a": [0.0, 0.0], "b": [10.0, 0.0]} if t < 3 else {"b": [0.0, 0.0], "a": [10.0, 0.0]}
-           for t in range(4)]
+    hyp = [
+        {"a": [0.0, 0.0], "b": [10.0, 0.0]} if t < 3 else {"b": [0.0, 0.0], "a": [10.0, 0.0]}
+        for t in range(4)
+    ]
     m = clear_mot(gt, hyp, 1.0)
     assert m["id_switches"] == 2 and m["matches"] == 6
     assert m["mota"] == pytest.approx(1 - 2 / 8)
@@ -264,9 +301,17 @@ def _oracle(gt, hyp, tau):
     padded = hids + [None] * len(oids)
     for perm in itertools.permutations(padded, len(oids)):
         idtp = max(idtp, sum(pairs.get((o, k), 0) for o, k in zip(oids, perm) if k is not None))
-    return dict(matches=tp, id_switches=sw, fp=fp, fn=fn, num_objects=n_obj, idtp=idtp,
-                motp=dsum / (tp + sw) if tp + sw else math.nan,
-                mota=1 - (fn + fp + sw) / n_obj, idf1=2 * idtp / (n_obj + n_pred))
+    return dict(
+        matches=tp,
+        id_switches=sw,
+        fp=fp,
+        fn=fn,
+        num_objects=n_obj,
+        idtp=idtp,
+        motp=dsum / (tp + sw) if tp + sw else math.nan,
+        mota=1 - (fn + fp + sw) / n_obj,
+        idf1=2 * idtp / (n_obj + n_pred),
+    )
 
 
 def _random_sequence(rng, n_frames=8, n_obj=3, n_hyp=4):

@@ -6,10 +6,11 @@ import filterpy.monte_carlo.resampling as fp_resampling
 import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter as FPKalmanFilter
-from flowtrack.particle import ParticleFilter, systematic_resample
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+
+from flowtrack.particle import ParticleFilter, systematic_resample
 
 
 @settings(max_examples=60, deadline=None)

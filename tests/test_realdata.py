@@ -2,8 +2,9 @@
 
 import numpy as np
 import pytest
-from flowtrack.realdata import motorcycle_cloud, motorcycle_flow_case
 from scipy.spatial import cKDTree
+
+from flowtrack.realdata import motorcycle_cloud, motorcycle_flow_case
 
 # numbers printed in the docstring of skimage.data.stereo_motorcycle (independent of the module)
 F, CX, CY, DOFFS, B_MM = 994.978, 311.193, 254.877, 31.086, 193.001

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from flowtrack.camera import PinholeCamera, project
 from flowtrack.synth import Body, Box, Cylinder, Plane, make_scene, ray_cast
 

@@ -6,6 +6,7 @@ import copy
 
 import numpy as np
 import pytest
+
 from flowtrack.association import chi2_gate
 from flowtrack.kalman import KalmanFilter, constant_velocity_model
 from flowtrack.metrics import clear_mot
@@ -241,6 +242,12 @@ def test_log_det_cost_prevents_a_newborn_track_stealing_a_detection():
 
 
 def test_clutter_is_never_confirmed(rng):
+    """Poisson clutter (5 per frame on 200 m x 200 m), no objects, min_hits=2.
+
+    A clutter point confirms a tentative track only if another one falls in its gate next frame:
+    S ~ 2 r + dt^2 velocity_var = 0.045 m^2, gate radius sqrt(9.21 S) = 0.64 m, area 1.3 m^2, so
+    p ~ 5 * 1.3 / 200^2 = 1.6e-4 per tentative track and ~0.05 confirmations expected in 300;
+    the seeded draw has none."""
     dt, sigma, extent = 0.1, 0.05, 200.0
     trk = MultiObjectTracker(dt, 1.0, sigma**2, min_hits=2, velocity_var=4.0)
     confirmed = 0
@@ -309,10 +316,20 @@ def test_flow_velocity_initialises_new_tracks():
         np.testing.assert_array_equal(tr.velocity, vi)
         np.testing.assert_allclose(tr.P[3:, 3:], 0.01 * np.eye(3))
         np.testing.assert_allclose(tr.P[:3, :3], sigma**2 * np.eye(3))
-    out = trk.step(np.array([[5.0, 5.0, 5.0]]))  # no velocities: zero velocity, large variance
+    trk.step(np.array([[5.0, 5.0, 5.0]]))  # no velocities: zero velocity, large variance
     new = next(t for t in trk.tracks if t.id == 2)
     np.testing.assert_array_equal(new.velocity, 0.0)
     np.testing.assert_allclose(new.P[3:, 3:], 9.0 * np.eye(3))
+    # a NaN row marks a detection without a velocity
+    trk.step(
+        np.array([[-5.0, 0.0, 1.0], [9.0, 9.0, 9.0]]),
+        velocities=np.array([[np.nan, np.nan, np.nan], [0.1, 0.2, 0.3]]),
+    )
+    a, b = (next(t for t in trk.tracks if t.id == i) for i in (3, 4))
+    np.testing.assert_array_equal(a.velocity, 0.0)
+    np.testing.assert_allclose(a.P[3:, 3:], 9.0 * np.eye(3))
+    np.testing.assert_array_equal(b.velocity, [0.1, 0.2, 0.3])
+    np.testing.assert_allclose(b.P[3:, 3:], 0.01 * np.eye(3))
 
 
 def test_trajectories_history():

@@ -13,6 +13,10 @@ import warnings
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.sparse.linalg import spsolve
+
 from flowtrack.variational import (
     grid_laplacian,
     red_black_sweep,
@@ -20,9 +24,6 @@ from flowtrack.variational import (
     variational_energy,
     variational_scene_flow,
 )
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-from scipy.sparse.linalg import spsolve
 
 METHODS = ["dct", "cg", "gauss_seidel"]
 
@@ -348,6 +349,11 @@ def test_max_iter_reached_warns(rng):
         with pytest.warns(RuntimeWarning, match="max_iter"):
             _, info = variational_scene_flow(X_t, X_t1, 0.1, 1.0, method=method, max_iter=2, return_info=True)
         assert not info["converged"] and info["iterations"] == 2
+    with pytest.warns(RuntimeWarning, match="irls_max_iter"):
+        _, info = variational_scene_flow(
+            X_t, X_t1, 0.1, 1.0, regularizer="charbonnier", irls_max_iter=1, return_info=True
+        )
+    assert not info["irls_converged"] and info["irls_iterations"] == 1
 
 
 # --------------------------------------------------------------------------------------------------

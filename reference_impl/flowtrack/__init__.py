@@ -36,7 +36,7 @@ _SUBMODULES = {
     "symbolic",
 }
 
-__all__ = sorted(_SUBMODULES) + ["__version__"]
+__all__ = [*sorted(_SUBMODULES), "__version__"]
 
 
 def __getattr__(name: str):

@@ -24,7 +24,8 @@ __all__ = [
 
 
 def _shape_str(shape: Sequence[int | str | None]) -> str:
-    return "(" + ", ".join("*" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+    inner = ", ".join("*" if s is None else str(s) for s in shape)
+    return "(" + inner + ("," if len(shape) == 1 else "") + ")"
 
 
 def as_array(

@@ -163,6 +163,23 @@ def _empty_result(M: int, N: int):
     )
 
 
+def _check_cost_gate(cost, gate):
+    cost = as_array(cost, "cost", ("M", "N"), finite=False)
+    if np.isnan(cost).any():
+        raise ValueError("cost (M, N) contains NaN")
+    if np.isneginf(cost).any():
+        raise ValueError("cost (M, N) contains -inf")
+    if isinstance(gate, (bool, np.bool_)):
+        raise TypeError("gate must be a real number, got bool")
+    try:
+        gate = float(gate)
+    except (TypeError, ValueError):
+        raise TypeError(f"gate must be a real number, got {type(gate).__name__}") from None
+    if np.isnan(gate):
+        raise ValueError("gate must not be NaN")
+    return cost, gate
+
+
 def _assign_unchecked(cost: np.ndarray, gate: float):
     """Gated max-cardinality / min-cost assignment on a validated NaN-free cost matrix."""
     M, N = cost.shape
@@ -270,19 +287,7 @@ def assign(cost, gate=np.inf):
     >>> matches, ut, ud
     (array([[0, 0]]), array([], dtype=int64), array([1, 2]))
     """
-    cost = as_array(cost, "cost", ("M", "N"), finite=False)
-    if np.isnan(cost).any():
-        raise ValueError("cost (M, N) contains NaN")
-    if np.isneginf(cost).any():
-        raise ValueError("cost (M, N) contains -inf")
-    if isinstance(gate, (bool, np.bool_)):
-        raise TypeError("gate must be a real number, got bool")
-    try:
-        gate = float(gate)
-    except (TypeError, ValueError):
-        raise TypeError(f"gate must be a real number, got {type(gate).__name__}") from None
-    if np.isnan(gate):
-        raise ValueError("gate must not be NaN")
+    cost, gate = _check_cost_gate(cost, gate)
     return _assign_unchecked(cost, gate)
 
 
@@ -297,9 +302,9 @@ def greedy_assign(cost, gate=np.inf):
     Parameters
     ----------
     cost : array_like, shape (M, N)
-        Pair costs; ``inf`` allowed (never matched), NaN rejected.
+        Pair costs; ``inf`` allowed (never matched), NaN and ``-inf`` rejected.
     gate : float
-        Pairs with ``cost > gate`` are never matched.
+        Pairs with ``cost > gate`` are never matched (default: no gate).
 
     Returns
     -------
@@ -313,12 +318,7 @@ def greedy_assign(cost, gate=np.inf):
     array([[0, 0],
            [1, 1]])
     """
-    cost = as_array(cost, "cost", ("M", "N"), finite=False)
-    if np.isnan(cost).any():
-        raise ValueError("cost (M, N) contains NaN")
-    gate = float(gate)
-    if np.isnan(gate):
-        raise ValueError("gate must not be NaN")
+    cost, gate = _check_cost_gate(cost, gate)
     return _greedy_unchecked(cost, gate)
 
 

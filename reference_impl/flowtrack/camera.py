@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import as_array, nonnegative, positive
+from ._validation import as_array, positive
 
 __all__ = [
     "PinholeCamera",

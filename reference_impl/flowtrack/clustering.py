@@ -38,7 +38,7 @@ from scipy.spatial import cKDTree
 
 from ._validation import as_array, nonnegative, positive, positive_int
 
-__all__ = ["cluster_motion", "motion_affinity_graph", "tracks_from_clusters"]
+__all__ = ["cluster_motion", "drop_small_clusters", "motion_affinity_graph", "tracks_from_clusters"]
 
 _METHODS = ("spectral", "connected")
 _GAP_RATIO = 0.1
@@ -282,6 +282,41 @@ def cluster_motion(
         lab[rest] = lab[~rest][nn]
     labels[idx] = _relabel_by_size(lab)
     return labels
+
+
+def drop_small_clusters(labels, min_size: int) -> np.ndarray:
+    """Send clusters with fewer than ``min_size`` points to the background (label ``-1``).
+
+    Isolated groups of "moving" points inside static surfaces are usually flow noise, not objects:
+    unlike ``cluster_motion(..., min_size=...)``, which merges them into a neighbouring cluster, this
+    drops them. The remaining clusters are renumbered ``0..K-1`` by decreasing size.
+
+    Parameters
+    ----------
+    labels : array_like of int, shape (N,)
+        Cluster labels, ``-1`` for background.
+    min_size : int >= 1
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+
+    Examples
+    --------
+    >>> drop_small_clusters([0, 0, 0, 1, 2, 2, -1], 2)
+    array([ 0,  0,  0, -1,  1,  1, -1])
+    """
+    lab = np.asarray(labels)
+    if lab.ndim != 1 or not np.issubdtype(lab.dtype, np.integer):
+        raise ValueError(f"labels must be a 1-D integer array, got shape {lab.shape} dtype {lab.dtype}")
+    min_size = positive_int(min_size, "min_size")
+    out = np.full(lab.shape, -1, dtype=np.int64)
+    ids, counts = np.unique(lab[lab >= 0], return_counts=True)
+    keep = ids[counts >= min_size]
+    keep = keep[np.argsort(-counts[counts >= min_size], kind="stable")]
+    for new, old in enumerate(keep):
+        out[lab == old] = new
+    return out
 
 
 def tracks_from_clusters(points, flow, labels) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -228,6 +228,88 @@ def _batched_cho_solve(L: np.ndarray, B: np.ndarray) -> np.ndarray:
     return X
 
 
+# OpenBLAS runs a GEMM on several threads once m·n·k exceeds 4·65536; for the thin products here the
+# threads buy nothing, and on a loaded machine their busy-waiting slowed the numpy work after each
+# call by 2-5x. So the batched filter splits its GEMMs over the track axis into pieces below that.
+_GEMM_SINGLE_THREAD_WORK = 200_000
+
+
+def _gemm_over_columns(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A (r, k) @ B (k, M)`` as GEMMs over blocks of columns small enough to stay single-threaded."""
+    r, k = A.shape
+    M = B.shape[1]
+    step = max(1, _GEMM_SINGLE_THREAD_WORK // max(1, r * k))
+    if M <= step:
+        return A @ B
+    out = np.empty((r, M))
+    for s in range(0, M, step):
+        np.matmul(A, B[:, s:s + step], out=out[:, s:s + step])
+    return out
+
+
+def _gemm_over_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A (M, k) @ B (k, r)`` as GEMMs over blocks of rows small enough to stay single-threaded."""
+    return _gemm_over_columns(B.T, A.T).T
+
+
+_SIGN2 = np.array([[1.0, -1.0], [-1.0, 1.0]])[:, :, None]
+
+
+def _spd_inverse_cm(S: np.ndarray, sel) -> tuple[np.ndarray, np.ndarray]:
+    """Inverses and log-determinants of a component-major stack ``S (m, m, M)`` of symmetric matrices.
+
+    Only the columns with ``sel`` True (all if ``sel`` is None) must be positive definite
+    (``ValueError`` otherwise); the others get a zero inverse and log-determinant 0. For
+    ``m <= 3`` closed form: adjugate over determinant, positive definiteness through the leading
+    principal minors (Sylvester); larger ``m`` via the batched Cholesky factorisation.
+    """
+    m, M = S.shape[0], S.shape[2]
+    if m > 3:
+        idx = slice(None) if sel is None else np.flatnonzero(sel)
+        St = np.ascontiguousarray(S.transpose(2, 0, 1)[idx])
+        L = _batched_cholesky(St)
+        inv = _batched_cho_solve(L, np.broadcast_to(np.eye(m), St.shape).copy())
+        Si = np.zeros((m, m, M))
+        Si[:, :, idx] = inv.transpose(1, 2, 0)
+        logdet = np.zeros(M)
+        logdet[idx] = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
+        return Si, logdet
+    if m == 1:
+        det = S[0, 0]
+        minors_ok = det > 0
+        adj = np.ones((1, 1, M))
+    elif m == 2:
+        a, b, d = S[0, 0], S[0, 1], S[1, 1]
+        det = a * d
+        det -= b * b
+        minors_ok = a > 0
+        minors_ok &= det > 0
+        adj = S[::-1, ::-1] * _SIGN2                                       # [[d, -b], [-b, a]]
+    else:
+        s00, s01, s02, s11, s12, s22 = S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]
+        adj = np.empty((3, 3, M))
+        adj[0, 0] = s11 * s22 - s12 * s12
+        adj[0, 1] = s02 * s12 - s01 * s22
+        adj[0, 2] = s01 * s12 - s02 * s11
+        adj[1, 1] = s00 * s22 - s02 * s02
+        adj[1, 2] = s01 * s02 - s00 * s12
+        adj[2, 2] = s00 * s11 - s01 * s01
+        adj[1, 0], adj[2, 0], adj[2, 1] = adj[0, 1], adj[0, 2], adj[1, 2]
+        det = s00 * adj[0, 0] + s01 * adj[0, 1] + s02 * adj[0, 2]
+        minors_ok = (s00 > 0) & (adj[2, 2] > 0) & (det > 0)
+    if sel is not None:
+        minors_ok |= ~sel
+    if not minors_ok.all():
+        raise _not_pd("S")
+    if sel is None:
+        inv_det = 1.0 / det
+    else:
+        det = np.where(sel, det, 1.0)
+        inv_det = np.where(sel, 1.0 / det, 0.0)
+    adj *= inv_det
+    return adj, np.log(det)
+
+
 class KalmanFilter:
     r"""Linear Kalman filter (syllabus section 6) with a Joseph-form update.
 
@@ -455,9 +537,20 @@ class BatchKalmanFilter:
         self.F, self.H, self.Q, self.R = _model(F, H, Q, R)
         self.dim_x = n = self.F.shape[0]
         self.dim_z = self.H.shape[0]
-        self.x = as_array(x0, "x0", ("M", n))
+        iu, ju = np.triu_indices(n)
+        self._iu_ju = iu * n + ju                                  # flat index of upper entry (i, j), i <= j
+        self._ju_iu = ju * n + iu                                  # ... and of its mirror (j, i)
+        pos = np.empty((n, n), dtype=np.intp)
+        pos[iu, ju] = np.arange(iu.size)
+        pos[ju, iu] = pos[iu, ju]
+        self._mirror = pos.ravel()                                 # full entry -> its packed slot
+        x0 = as_array(x0, "x0", ("M", n))
         self._P0_default: np.ndarray | None = None
-        self.P = self._covariances(P0, "P0", self.x.shape[0])
+        self._const_cache = None
+        self._xc = np.ascontiguousarray(x0.T)
+        self._Pu = self._pack(self._covariances(P0, "P0", x0.shape[0]))
+        self._x_cache: np.ndarray | None = None
+        self._P_cache: np.ndarray | None = None
         self._reset_last()
 
     def _covariances(self, P0, name: str, M: int) -> np.ndarray:
@@ -475,18 +568,82 @@ class BatchKalmanFilter:
             check_psd(P0, name)
         return 0.5 * (P0 + np.swapaxes(P0, -1, -2))
 
+    def _pack(self, P: np.ndarray) -> np.ndarray:
+        """Symmetric ``(k, n, n)`` stack -> packed component-major ``(n(n+1)/2, k)`` (upper triangles)."""
+        k, n = P.shape[0], self.dim_x
+        return np.ascontiguousarray(P.reshape(k, n * n)[:, self._iu_ju].T)
+
     def _reset_last(self) -> None:
-        self.innovation: np.ndarray | None = None
-        self.S: np.ndarray | None = None
+        self._yc: np.ndarray | None = None
+        self._sel = None
+        self._Sc: np.ndarray | None = None
+        self._y_cache: np.ndarray | None = None
+        self._S_cache: np.ndarray | None = None
         self.log_likelihood: np.ndarray | None = None
 
+    def _state_changed(self) -> None:
+        self._x_cache = None
+        self._P_cache = None
+
     def __len__(self) -> int:
-        return self.x.shape[0]
+        return self._xc.shape[1]
 
     @property
     def M(self) -> int:
         """Number of tracks."""
-        return self.x.shape[0]
+        return self._xc.shape[1]
+
+    # -- public arrays -------------------------------------------------------------------------------
+    #
+    # Internally the state is component-major (see "Layout" below): ``_xc (n, M)`` and the upper
+    # triangles of the covariances packed as ``_Pu (n(n+1)/2, M)``. The usual ``x (M, n)`` and
+    # ``P (M, n, n)`` are built on access and cached until the next step or track change; they are
+    # copies, so write them back by assignment (``bkf.P = ...``), not by item assignment.
+    @property
+    def x(self) -> np.ndarray:
+        """Means, shape ``(M, n)``."""
+        if self._x_cache is None:
+            self._x_cache = np.ascontiguousarray(self._xc.T)
+        return self._x_cache
+
+    @x.setter
+    def x(self, value) -> None:
+        value = as_array(value, "x", (self.M, self.dim_x))
+        self._xc = np.ascontiguousarray(value.T)
+        self._x_cache = None
+
+    @property
+    def P(self) -> np.ndarray:
+        """Covariances, shape ``(M, n, n)`` (exactly symmetric)."""
+        if self._P_cache is None:
+            n = self.dim_x
+            self._P_cache = np.ascontiguousarray(self._Pu[self._mirror].T).reshape(self.M, n, n)
+        return self._P_cache
+
+    @P.setter
+    def P(self, value) -> None:
+        n = self.dim_x
+        value = as_array(value, "P", (self.M, n, n))
+        self._Pu = self._pack(0.5 * (value + np.swapaxes(value, -1, -2)))
+        self._P_cache = None
+
+    @property
+    def innovation(self) -> np.ndarray | None:
+        """Innovations of the last :meth:`update`, shape ``(M, m)``; NaN rows for tracks not updated."""
+        if self._y_cache is None and self._yc is not None:
+            y = np.ascontiguousarray(self._yc.T)
+            if self._sel is not None:
+                y[~self._sel] = np.nan
+            self._y_cache = y
+        return self._y_cache
+
+    @property
+    def S(self) -> np.ndarray | None:
+        """Innovation covariances ``H P⁻ Hᵀ + R`` of the last :meth:`update`, shape ``(M, m, m)``."""
+        if self._S_cache is None and self._Sc is not None:
+            m = self.dim_z
+            self._S_cache = np.ascontiguousarray(self._Sc.reshape(m * m, -1).T).reshape(-1, m, m)
+        return self._S_cache
 
     # -- track management ----------------------------------------------------------------------------
     def append(self, x0, P0=None) -> np.ndarray:
@@ -517,8 +674,9 @@ class BatchKalmanFilter:
             P0 = self._P0_default
         P0 = self._covariances(P0, "P0", k)
         start = self.M
-        self.x = np.concatenate([self.x, x0], axis=0)
-        self.P = np.concatenate([self.P, P0], axis=0)
+        self._xc = np.concatenate([self._xc, x0.T], axis=1)
+        self._Pu = np.concatenate([self._Pu, self._pack(P0)], axis=1)
+        self._state_changed()
         self._reset_last()
         return np.arange(start, start + k)
 
@@ -534,28 +692,89 @@ class BatchKalmanFilter:
             raise ValueError(f"indices must be a 1-D int array or a bool mask of shape ({self.M},)")
         elif idx.min() < -self.M or idx.max() >= self.M:
             raise ValueError(f"indices out of range for {self.M} tracks")
-        self.x = self.x[idx]
-        self.P = self.P[idx]
+        self._xc = np.ascontiguousarray(self._xc[:, idx])
+        self._Pu = np.ascontiguousarray(self._Pu[:, idx])
+        self._state_changed()
         self._reset_last()
 
     # -- steps ---------------------------------------------------------------------------------------
-    def _left(self, A: np.ndarray, P: np.ndarray) -> np.ndarray:
-        """``A @ P_i`` for every track with one shared ``A (r, n)``, as one GEMM (no per-track call)."""
-        k, n, c = P.shape
-        return (A @ P.transpose(1, 0, 2).reshape(n, k * c)).reshape(A.shape[0], k, c).transpose(1, 0, 2)
+    #
+    # Layout. A stack of M tiny matrices (M, 4, 4) is the worst case for numpy: a stacked ``matmul``
+    # costs ~100 ns per 4x4 product and elementwise ops with an inner axis of length 4 run far below
+    # memory speed. So the state is kept in the *component-major* ("structure of arrays") layout: a
+    # ``(k, M)`` array whose row ``r`` is one matrix entry for all tracks; of each symmetric ``P``
+    # only the upper triangle is stored (``n(n+1)/2`` rows), so ``P`` is exactly symmetric by
+    # construction.
+    #   * every product with a shared matrix (F, H) is one GEMM with a Kronecker matrix folded onto
+    #     the packed triangle, e.g. vec(F P Fᵀ) = (F ⊗ F) vec(P) (row-major vec), for all tracks;
+    #     when H selects entries (each row one 1), P Hᵀ and H P Hᵀ are a row gather instead;
+    #   * every per-track product (K y, K S, D Kᵀ) is one broadcast multiply and a sum over the tiny
+    #     m axis on contiguous length-M rows;
+    #   * S⁻¹ for m <= 3 is closed form (adjugate / determinant, PD checked by leading minors).
+    def _consts(self):
+        """Operators of the shared model on the packed layout, cached on the bytes of ``F, H, Q, R``."""
+        F, H, Q, R = self.F, self.H, self.Q, self.R
+        key = (F.shape, H.shape, F.tobytes(), H.tobytes(), Q.tobytes(), R.tobytes())
+        c = self._const_cache
+        if c is None or c[0] != key:
+            n, m = self.dim_x, self.dim_z
+            up, lo = self._iu_ju, self._ju_iu
+            off = (up != lo)[None, :]
 
-    @staticmethod
-    def _right(P: np.ndarray, B: np.ndarray) -> np.ndarray:
-        """``P_i @ B`` for every track with one shared ``B (c, r)``, as one GEMM."""
-        k, r, c = P.shape
-        return (P.reshape(k * r, c) @ B).reshape(k, r, B.shape[1])
+            def fold(A):  # A (r, n²) acting on vec(P) -> (r, n(n+1)/2) acting on the packed P
+                return np.ascontiguousarray(A[:, up] + np.where(off, A[:, lo], 0.0))
+
+            FF = np.einsum("ik,jl->ijkl", F, F).reshape(n * n, n * n)          # vec(F P Fᵀ) = FF vec(P)
+            IH = np.einsum("ik,jl->ijkl", np.eye(n), H).reshape(n * m, n * n)  # vec(P Hᵀ)
+            HH = np.einsum("ik,jl->ijkl", H, H).reshape(m * m, n * n)          # vec(H P Hᵀ)
+            G = np.vstack([IH, HH])                  # vec(P) -> [vec(P Hᵀ); vec(H P Hᵀ)], component-major
+            # H a selection matrix: every row of G picks one entry of P, a gather of packed rows
+            take = None
+            if np.array_equal(np.count_nonzero(G, axis=1), np.ones(len(G))) and (G.max(axis=1) == 1).all():
+                take = self._mirror[np.argmax(G, axis=1)]
+            cols = np.argmax(H, axis=1)
+            if not np.array_equal(H, np.eye(n)[cols]):
+                cols = None
+            c = self._const_cache = (
+                key,
+                fold(FF[up]),                                      # (n(n+1)/2)² : packed F P Fᵀ
+                Q.ravel()[up][:, None].copy(),
+                take,
+                fold(G),
+                R.reshape(m * m, 1).copy(),
+                cols,
+            )
+        return c[1:]
+
+    def _hph(self):
+        """Component-major ``P Hᵀ (n, m, M)`` and ``S = H P Hᵀ + R (m, m, M)`` (exactly symmetric)."""
+        M, n, m = self.M, self.dim_x, self.dim_z
+        _, _, take, G, Rcol, _ = self._consts()
+        if take is not None:
+            Y = self._Pu.take(take, axis=0)
+        else:
+            Y = _gemm_over_columns(G, self._Pu)
+        S = Y[n * m:]
+        S += Rcol
+        S = S.reshape(m, m, M)
+        if take is None:
+            for i in range(m):
+                for j in range(i + 1, m):
+                    S[j, i] = S[i, j]
+        return Y[:n * m].reshape(n, m, M), S
 
     def predict(self) -> None:
         r"""Time update of every track: :math:`x_i \leftarrow F x_i`, :math:`P_i \leftarrow F P_i F^\top + Q`.
+
+        One GEMM gives the (packed) upper triangle of every :math:`F P_i F^\top`, so ``P`` stays
+        exactly symmetric.
         """
-        self.x = self.x @ self.F.T
-        P = self._left(self.F, self._right(self.P, self.F.T)) + self.Q
-        self.P = 0.5 * (P + np.swapaxes(P, -1, -2))
+        FFp, Qu = self._consts()[:2]
+        self._xc = _gemm_over_columns(self.F, self._xc)
+        Pu = _gemm_over_columns(FFp, self._Pu)
+        Pu += Qu
+        self._Pu = Pu
+        self._x_cache = self._P_cache = None
 
     def predicted_measurements(self):
         """Predicted measurements and innovation covariances of all tracks, for gating.
@@ -567,19 +786,26 @@ class BatchKalmanFilter:
         S : ndarray, shape (M, m, m)
             :math:`H P_i H^\\top + R`.
         """
-        return self.x @ self.H.T, self._innovation_cov(self._left(self.H, self.P))
-
-    def _innovation_cov(self, HP: np.ndarray) -> np.ndarray:
-        S = self._right(HP, self.H.T) + self.R
-        return 0.5 * (S + np.swapaxes(S, -1, -2))
+        M, m = self.M, self.dim_z
+        cols = self._consts()[5]
+        _, S = self._hph()
+        z = self._xc[cols] if cols is not None else self.H @ self._xc
+        return np.ascontiguousarray(z.T), np.ascontiguousarray(S.reshape(m * m, M).T).reshape(M, m, m)
 
     def update(self, Z, mask=None) -> None:
         r"""Joseph-form measurement update of the tracks with ``mask[i]`` True.
 
-        Per track: :math:`S = HPH^\top + R = LL^\top` (Cholesky), :math:`K^\top = S^{-1} H P` and
-        :math:`S^{-1}y` by triangular solves, then
-        :math:`P \leftarrow [I - KH,\ K]\,\operatorname{blkdiag}(P, R)\,[I - KH,\ K]^\top`
-        (the Joseph form as one congruence).
+        Per track, with :math:`S = HPH^\top + R`: :math:`K = P H^\top S^{-1}`,
+        :math:`x \leftarrow x + K y`, and the Joseph form
+        :math:`P \leftarrow (I - KH) P (I - KH)^\top + K R K^\top`, evaluated as
+        :math:`P + D K^\top + K D^\top` with :math:`D = \tfrac12 K S - P H^\top` (the same
+        polynomial in ``K`` expanded, so it keeps the Joseph form's property that an error
+        :math:`\delta K` in the gain changes ``P`` only by :math:`\delta K\, S\, \delta K^\top`);
+        only the upper triangle is computed and stored, so ``P`` is exactly symmetric.
+        :math:`S^{-1}` is closed form for ``m <= 3`` (adjugate over determinant; positive
+        definiteness checked through the leading principal minors) and from a Cholesky
+        factorisation otherwise. Tracks with ``mask`` False get
+        a zero gain, so their ``x`` and (symmetric) ``P`` are left bit-for-bit unchanged.
 
         Parameters
         ----------
@@ -591,37 +817,44 @@ class BatchKalmanFilter:
         M, n, m = self.M, self.dim_x, self.dim_z
         Z = as_array(Z, "Z", (M, m), allow_nan=True)
         if mask is None:
-            sel = np.ones(M, dtype=bool)
+            sel = None
         else:
             sel = np.asarray(mask)
             if sel.dtype != bool or sel.shape != (M,):
                 raise ValueError(f"mask must be a bool array of shape ({M},), got {sel.dtype} {sel.shape}")
-        if np.isnan(Z[sel]).any():
+            if sel.all():
+                sel = None
+        cols = self._consts()[5]
+        PHt, S = self._hph()                                               # (n, m, M), (m, m, M)
+        xc = self._xc
+        y = Z.T - (xc[cols] if cols is not None else self.H @ xc)          # (m, M), NaN if unmeasured
+        if sel is not None:
+            y = np.where(sel, y, 0.0)
+        if np.isnan(y).any():  # Z is finite or NaN (as_array), x finite: a NaN in a measured row
             raise ValueError("Z contains NaN in a row that is to be updated (mask True)")
-        HP_all = self._left(self.H, self.P)                          # (M, m, n)
-        S = self._innovation_cov(HP_all)                              # (M, m, m)
-        y_all = np.full((M, m), np.nan)
-        ll = np.zeros(M)
-        if sel.any():
-            idx = np.flatnonzero(sel) if not sel.all() else slice(None)
-            P, HP, Ss = self.P[idx], HP_all[idx], S[idx]
-            y = Z[idx] - self.x[idx] @ self.H.T
-            L = _batched_cholesky(Ss)
-            # one pair of triangular solves for both Kᵀ = S⁻¹ H P and S⁻¹ y
-            sol = _batched_cho_solve(L, np.concatenate([HP, y[:, :, None]], axis=2))
-            K = np.swapaxes(sol[:, :, :n], -1, -2)                    # (k, n, m)
-            w = sol[:, :, n]                                          # (k, m)
-            self.x[idx] = self.x[idx] + np.einsum("knm,km->kn", K, y)
-            A = np.concatenate([np.eye(n) - self._right(K, self.H), K], axis=2)   # (k, n, n+m)
-            B = np.zeros((A.shape[0], n + m, n + m))
-            B[:, :n, :n] = P
-            B[:, n:, n:] = self.R
-            Pn = A @ B @ np.swapaxes(A, -1, -2)
-            self.P[idx] = 0.5 * (Pn + np.swapaxes(Pn, -1, -2))
-            logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
-            ll[idx] = -0.5 * (np.einsum("km,km->k", y, w) + logdet + m * _LOG_2PI)
-            y_all[idx] = y
-        self.innovation, self.S, self.log_likelihood = y_all, S, ll
+        Si, logdet = _spd_inverse_cm(S, sel)                               # (m, m, M), zero if unmeasured
+        # K = P Hᵀ S⁻¹, the Joseph factor D = K S / 2 - P Hᵀ, K y, S⁻¹ y: each one broadcast
+        # product and a sum over the m axis
+        K = (PHt[:, :, None] * Si).sum(axis=1)                             # (n, m, M)
+        D = (K[:, :, None] * S).sum(axis=1)
+        D *= 0.5
+        D -= PHt
+        self._xc = xc + (K * y).sum(axis=1)
+        # Joseph form (I - KH) P (I - KH)ᵀ + K R Kᵀ = P + D Kᵀ + K Dᵀ  (for any gain K), upper triangle
+        T = (D[:, None] * K).sum(axis=2).reshape(n * n, M)                  # (D Kᵀ)[i, j]
+        Pu = self._Pu + T.take(self._iu_ju, axis=0)
+        Pu += T.take(self._ju_iu, axis=0)
+        self._Pu = Pu
+        quad = (y * (y[:, None] * Si).sum(axis=0)).sum(axis=0)
+        ll = quad
+        ll += logdet
+        ll += m * _LOG_2PI
+        ll *= -0.5
+        if sel is not None:
+            ll[~sel] = 0.0
+        self._x_cache = self._P_cache = None
+        self._reset_last()
+        self._yc, self._sel, self._Sc, self.log_likelihood = y, sel, S, ll
 
     def __repr__(self) -> str:
         return f"BatchKalmanFilter(M={self.M}, dim_x={self.dim_x}, dim_z={self.dim_z})"

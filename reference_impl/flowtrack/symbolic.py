@@ -19,6 +19,8 @@ tests and lessons can compare the derivation with the numerical reference implem
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 import sympy as sp
 from sympy.calculus.euler import euler_equations
@@ -81,6 +83,11 @@ def projection_jacobian() -> sp.Matrix:
     return pi.jacobian(sp.Matrix([X, Y, Z]))
 
 
+@cache
+def _projection_fn():
+    return sp.lambdify(projection_symbols(), projection_jacobian(), "numpy")
+
+
 def projection_jacobian_numeric(X, cam) -> np.ndarray:
     """Evaluate the *derived* :func:`projection_jacobian` at points ``X (N, 3)`` for a camera.
 
@@ -107,7 +114,7 @@ def projection_jacobian_numeric(X, cam) -> np.ndarray:
     for attr in ("fx", "fy", "cx", "cy"):
         if not hasattr(cam, attr):
             raise TypeError(f"cam must be a PinholeCamera, got {type(cam).__name__}")
-    f = sp.lambdify(projection_symbols(), projection_jacobian(), "numpy")
+    f = _projection_fn()
     out = np.empty((pts.shape[0], 2, 3))
     for k, (x, y, z) in enumerate(pts):
         out[k] = f(x, y, z, cam.fx, cam.fy, cam.cx, cam.cy)
@@ -244,9 +251,15 @@ def white_noise_acceleration_Q_numeric(dt, q, dim: int = 2, model: str = "discre
     """
     dt = positive(dt, "dt")
     q = nonnegative(q, "q")
+    if not isinstance(model, str):
+        raise TypeError(f"model must be a string, got {type(model).__name__}")
+    return np.asarray(_q_fn(positive_int(dim, "dim"), model)(dt, q), dtype=float)
+
+
+@cache
+def _q_fn(dim: int, model: str):
     Q = white_noise_acceleration_Q(dim, model)
-    f = sp.lambdify(sp.symbols("Delta_t q", positive=True), Q, "numpy")
-    return np.asarray(f(dt, q), dtype=float)
+    return sp.lambdify(sp.symbols("Delta_t q", positive=True), Q, "numpy")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -289,7 +302,10 @@ def kalman_gain(n: int = 2, m: int = 1) -> sp.Matrix:
     Parameters
     ----------
     n, m : int
-        State and measurement dimensions (small: the system is solved symbolically).
+        State and measurement dimensions; ``n * m <= 4`` (the stationarity system is solved
+        symbolically, which grows quickly). The gradient identity
+        :math:`\partial \operatorname{tr} P^+ / \partial K = 2(K S - P H^\top)`,
+        :math:`S = HPH^\top + R`, behind the closed form holds for every size.
 
     Returns
     -------
@@ -305,6 +321,8 @@ def kalman_gain(n: int = 2, m: int = 1) -> sp.Matrix:
     [0]])
     """
     P, H, R, K = kalman_matrices(n, m)
+    if P.shape[0] * R.shape[0] > 4:
+        raise ValueError(f"n * m must be <= 4 for the symbolic solve (got n={n}, m={m})")
     I_KH = sp.eye(P.shape[0]) - K * H
     trace = (I_KH * P * I_KH.T + K * R * K.T).trace()
     unknowns = list(K)
@@ -318,6 +336,13 @@ def kalman_gain_closed_form(n: int = 2, m: int = 1) -> sp.Matrix:
     r""":math:`P H^\top (H P H^\top + R)^{-1}` in the symbols of :func:`kalman_matrices`."""
     P, H, R, _ = kalman_matrices(n, m)
     return P * H.T * (H * P * H.T + R).inv()
+
+
+@cache
+def _gain_fn(n: int, m: int):
+    Ps, Hs, Rs, _ = kalman_matrices(n, m)
+    syms = sorted(Ps.free_symbols | Hs.free_symbols | Rs.free_symbols, key=lambda s: s.name)
+    return sp.lambdify(syms, kalman_gain(n, m), "numpy"), syms, (Ps, Hs, Rs)
 
 
 def kalman_gain_numeric(P, H, R) -> np.ndarray:
@@ -334,9 +359,9 @@ def kalman_gain_numeric(P, H, R) -> np.ndarray:
     H = as_array(H, "H", (None, n))
     m = H.shape[0]
     R = check_psd(as_array(R, "R", (m, m)), "R", strict=True)
-    Ps, Hs, Rs, _ = kalman_matrices(n, m)
-    syms = sorted(Ps.free_symbols | Hs.free_symbols | Rs.free_symbols, key=lambda s: s.name)
-    f = sp.lambdify(syms, kalman_gain(n, m), "numpy")
+    if n * m > 4:
+        raise ValueError(f"H: n * m must be <= 4 for the symbolic gain, got H of shape {H.shape}")
+    f, syms, (Ps, Hs, Rs) = _gain_fn(n, m)
     values = {}
     for S, A in ((Ps, P), (Hs, H), (Rs, R)):
         for (i, j), s in np.ndenumerate(np.array(S, dtype=object)):
@@ -383,6 +408,12 @@ def kalman_posterior():
     return mean, var, (x, mu, p, z, h, r)
 
 
+@cache
+def _posterior_fn():
+    mean, var, (_x, *syms) = kalman_posterior()
+    return sp.lambdify(syms, (mean, var), "math")
+
+
 def kalman_posterior_numeric(mu, p, z, h, r) -> tuple[float, float]:
     """Evaluate the *derived* :func:`kalman_posterior` (mean, variance) at numbers.
 
@@ -398,9 +429,7 @@ def kalman_posterior_numeric(mu, p, z, h, r) -> tuple[float, float]:
         float(as_array(h, "h", ())),
         positive(r, "r"),
     )
-    mean, var, (_x, *syms) = kalman_posterior()
-    f = sp.lambdify(syms, (mean, var), "math")
-    m, v = f(*vals)
+    m, v = _posterior_fn()(*vals)
     return float(m), float(v)
 
 
@@ -453,5 +482,10 @@ def steady_state_variance_scalar_numeric(f, h, q, r) -> float:
     1.618034
     """
     vals = (float(as_array(f, "f", ())), positive(h, "h"), positive(q, "q"), positive(r, "r"))
+    return float(_steady_fn()(*vals))
+
+
+@cache
+def _steady_fn():
     expr, syms = steady_state_variance_scalar()
-    return float(sp.lambdify(syms, expr, "math")(*vals))
+    return sp.lambdify(syms, expr, "math")

@@ -8,7 +8,10 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
 2. **Associate**: build the squared Mahalanobis costs
    :math:`C_{ij} = (z_j - H\hat x_i)^\top S_i^{-1}(z_j - H\hat x_i)`, :math:`S_i = HP_iH^\top + R`,
    gate them at :math:`\gamma = F^{-1}_{\chi^2_d}(p)` and solve the gated assignment
-   (:func:`flowtrack.association.assign`: most pairs, then least cost).
+   (:func:`flowtrack.association.assign`: most pairs, then least cost). The default
+   :class:`GNNAssociator` minimises :math:`C_{ij} + \ln\det S_i` (the pair's negative
+   log-likelihood) so that a newborn, very uncertain track cannot steal the detection of an
+   established one; ``GNNAssociator(log_det=False)`` uses :math:`C_{ij}` alone, as the syllabus.
 3. **Update** the assigned tracks with their detections (Joseph-form Kalman update).
 4. **Manage** births, occlusions and deletions:
 
@@ -247,7 +250,8 @@ class SingleDetectionInitiator:
                P_0 = \begin{bmatrix} R & 0 \\ 0 & \sigma_v^2 I \end{bmatrix},
 
     with :math:`v` the detection's scene-flow velocity and :math:`\sigma_v^2` = ``flow_velocity_var``
-    when velocities are given, else :math:`v = 0` and :math:`\sigma_v^2` = ``velocity_var``.
+    when it is given, else (no velocities, or a NaN row) :math:`v = 0` and
+    :math:`\sigma_v^2` = ``velocity_var``.
 
     Parameters
     ----------
@@ -266,17 +270,18 @@ class SingleDetectionInitiator:
         self.flow_velocity_var = positive(flow_velocity_var, "flow_velocity_var")
 
     def initiate(self, detections: np.ndarray, velocities: np.ndarray | None):
+        """Return ``x0 (k, 2d)`` and ``P0 (k, 2d, 2d)``; a NaN row of ``velocities`` means unknown."""
         k, d = detections.shape
         x0 = np.zeros((k, 2 * d))
         x0[:, :d] = detections
         P0 = np.zeros((k, 2 * d, 2 * d))
         P0[:, :d, :d] = self.R
-        if velocities is None:
-            var = self.velocity_var
-        else:
-            x0[:, d:] = velocities
-            var = self.flow_velocity_var
-        P0[:, d:, d:] = var * np.eye(d)
+        var = np.full(k, self.velocity_var)
+        if velocities is not None:
+            known = ~np.isnan(velocities).any(axis=1)
+            x0[known, d:] = velocities[known]
+            var[known] = self.flow_velocity_var
+        P0[:, d:, d:] = var[:, None, None] * np.eye(d)
         return x0, P0
 
 
@@ -426,7 +431,7 @@ class MultiObjectTracker:
             raise ValueError(f"detections must have shape (N, {d}), got {Z.shape}")
         V = None
         if velocities is not None:
-            V = as_array(velocities, "velocities")
+            V = as_array(velocities, "velocities", allow_nan=True)
             if V.size == 0 and V.ndim <= 1:
                 V = V.reshape(0, d)
             if V.shape != Z.shape:
@@ -445,7 +450,8 @@ class MultiObjectTracker:
             Detected object positions in this frame (``N`` may be 0).
         velocities : array_like, shape (N, dim), optional
             Per-detection velocity (e.g. the mean scene flow of the detection's cluster); used
-            only to initialise the velocity of tracks born from these detections.
+            only to initialise the velocity of tracks born from these detections. A row of NaN
+            marks a detection without a velocity (inf is rejected).
 
         Returns
         -------

@@ -93,6 +93,12 @@ of the current iterate, then update the weights — is a majorise–minimise sch
 never increases. The first iterate (all :math:`w = 1`) is the quadratic solution, computed with
 ``method``; the reweighted systems are solved with warm-started Jacobi-PCG whatever ``method`` is.
 
+Public functions
+----------------
+:func:`variational_scene_flow` (the three components), :func:`solve_component` (one component, the
+syllabus' :math:`E_k`), :func:`red_black_sweep` (one Gauss–Seidel sweep: the exercise),
+:func:`grid_laplacian` (sparse :math:`L`, optionally edge-weighted) and :func:`variational_energy`.
+
 Examples
 --------
 A uniform translation is reproduced exactly by every method:
@@ -462,6 +468,13 @@ def _solve_charbonnier(d, m, alpha, dt, lam, eps, method, tol, max_iter, irls_ma
         energies.append(_energy(v, d, m, dt, lam, "charbonnier", eps))
         if change < irls_tol:
             break
+    if not change < irls_tol:
+        warnings.warn(
+            f"IRLS stopped after irls_max_iter={irls_max_iter} reweightings with relative change "
+            f"{change:.3g} >= irls_tol={irls_tol:g}; increase irls_max_iter",
+            RuntimeWarning,
+            stacklevel=3,
+        )
     info.update(
         {
             "regularizer": "charbonnier",
@@ -644,7 +657,8 @@ def variational_scene_flow(
         ``residual_history`` (relative residual after each iteration; for DCT the single final
         value), ``residual`` (final true relative residual), ``converged``, and for charbonnier
         ``irls_iterations``, ``irls_change``, ``irls_converged``, ``inner_iterations``,
-        ``energy_history`` (:math:`E_\psi` after each IRLS step, non-increasing).
+        ``energy_history`` (:math:`E_\psi` after each IRLS step, non-increasing); there ``iterations``
+        and ``residual*`` describe the first (quadratic) solve.
 
     Returns
     -------
