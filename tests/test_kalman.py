@@ -498,3 +498,17 @@ def test_bad_measurements_and_parameters():
         bkf.append(np.zeros(2), -np.eye(2))
     with pytest.raises(ValueError, match="indices"):
         bkf.keep([5])
+
+
+def test_batch_state_views_are_read_only():
+    """x and P are built on access: an in-place edit could not reach the filter, so it must raise."""
+    from flowtrack.kalman import BatchKalmanFilter, constant_velocity_model
+
+    F, H, Q, R = constant_velocity_model(0.1, 1.0, 0.5)
+    bkf = BatchKalmanFilter(F, H, Q, R, np.zeros((3, 4)), np.eye(4))
+    with pytest.raises(ValueError, match="read-only"):
+        bkf.x[0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        bkf.P[0, 0, 0] = 1.0
+    bkf.x = np.ones((3, 4))
+    assert (bkf.x == 1.0).all()

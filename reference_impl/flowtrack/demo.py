@@ -198,18 +198,21 @@ def _plot_flow_field(scene, pair: FlowPair, path: Path) -> None:
     rng = np.random.default_rng(0)
     moving = np.linalg.norm(pair.gt_flow, axis=1) > 1e-6
     pick = np.flatnonzero(moving)
-    pick = pick[rng.permutation(len(pick))[:600]]
+    pick = pick[rng.permutation(len(pick))[:220]]
+    from matplotlib.colors import Normalize
+
+    norm = Normalize(0.0, float(np.linalg.norm(pair.gt_flow[pick], axis=1).max()) if len(pick) else 1.0)
     panels = [
         ("ground-truth scene flow", pair.gt_flow),
-        ("estimate (graph + re-matching)", pair.flows["graph + re-matching"]),
+        ("estimate (rigid ICP per motion cluster)", pair.flows["rigid per cluster"]),
     ]
     for ax, (title, flow) in zip(axes, panels):
         ax.imshow(frame.rgb)
         of = optical_flow_from_scene_flow(pair.points[pick], flow[pick], dt, cam)
         speed = np.linalg.norm(flow[pick], axis=1)
         q = ax.quiver(uv[pick, 0], uv[pick, 1], of[:, 0], of[:, 1], speed, angles="xy", scale_units="xy",
-                      scale=0.25, cmap="viridis", width=0.003)
-        ax.set_title(f"{title}\n(image-plane arrows ×4)")
+                      scale=0.5, cmap="viridis", width=0.003, norm=norm)
+        ax.set_title(f"{title}\n(image-plane arrows ×2)")
         ax.set_axis_off()
     fig.colorbar(q, ax=axes, label="3-D speed (m/s)", shrink=0.8)
     fig.savefig(path, dpi=110)

@@ -551,6 +551,8 @@ class BatchKalmanFilter:
         self._Pu = self._pack(self._covariances(P0, "P0", x0.shape[0]))
         self._x_cache: np.ndarray | None = None
         self._P_cache: np.ndarray | None = None
+        self._Pu_spare: np.ndarray | None = None                   # the other buffer of predict
+        self._buf: np.ndarray | None = None                        # scratch of update
         self._reset_last()
 
     def _covariances(self, P0, name: str, M: int) -> np.ndarray:
@@ -604,6 +606,7 @@ class BatchKalmanFilter:
         """Means, shape ``(M, n)``."""
         if self._x_cache is None:
             self._x_cache = np.ascontiguousarray(self._xc.T)
+            self._x_cache.flags.writeable = False  # an in-place edit would not reach the filter
         return self._x_cache
 
     @x.setter
@@ -618,6 +621,7 @@ class BatchKalmanFilter:
         if self._P_cache is None:
             n = self.dim_x
             self._P_cache = np.ascontiguousarray(self._Pu[self._mirror].T).reshape(self.M, n, n)
+            self._P_cache.flags.writeable = False  # assign the whole array instead
         return self._P_cache
 
     @P.setter
@@ -771,9 +775,13 @@ class BatchKalmanFilter:
         """
         FFp, Qu = self._consts()[:2]
         self._xc = _gemm_over_columns(self.F, self._xc)
-        Pu = _gemm_over_columns(FFp, self._Pu)
-        Pu += Qu
-        self._Pu = Pu
+        Pu, spare = self._Pu, self._Pu_spare
+        if spare is None or spare.shape != Pu.shape or Pu.shape[1] * FFp.size > _GEMM_SINGLE_THREAD_WORK:
+            spare = _gemm_over_columns(FFp, Pu)
+        else:
+            np.matmul(FFp, Pu, out=spare)
+        spare += Qu
+        self._Pu, self._Pu_spare = spare, Pu
         self._x_cache = self._P_cache = None
 
     def predicted_measurements(self):
@@ -833,18 +841,33 @@ class BatchKalmanFilter:
         if np.isnan(y).any():  # Z is finite or NaN (as_array), x finite: a NaN in a measured row
             raise ValueError("Z contains NaN in a row that is to be updated (mask True)")
         Si, logdet = _spd_inverse_cm(S, sel)                               # (m, m, M), zero if unmeasured
-        # K = P Hᵀ S⁻¹, the Joseph factor D = K S / 2 - P Hᵀ, K y, S⁻¹ y: each one broadcast
-        # product and a sum over the m axis
-        K = (PHt[:, :, None] * Si).sum(axis=1)                             # (n, m, M)
-        D = (K[:, :, None] * S).sum(axis=1)
+        # K = P Hᵀ S⁻¹, the Joseph factor D = K S / 2 - P Hᵀ, K y, S⁻¹ y: sums over the tiny m axis,
+        # unrolled (K, D, D Kᵀ) or one broadcast product and a sum; D Kᵀ in reused scratch buffers
+        K = PHt[:, 0, None] * Si[0]                                        # (n, m, M)
+        D = np.empty_like(K)
+        for k in range(1, m):
+            np.multiply(PHt[:, k, None], Si[k], out=D)
+            K += D
+        np.multiply(K[:, 0, None], S[0], out=D)
+        for k in range(1, m):
+            D += K[:, k, None] * S[k]
         D *= 0.5
         D -= PHt
         self._xc = xc + (K * y).sum(axis=1)
         # Joseph form (I - KH) P (I - KH)ᵀ + K R Kᵀ = P + D Kᵀ + K Dᵀ  (for any gain K), upper triangle
-        T = (D[:, None] * K).sum(axis=2).reshape(n * n, M)                  # (D Kᵀ)[i, j]
-        Pu = self._Pu + T.take(self._iu_ju, axis=0)
+        buf = self._buf
+        if buf is None or buf.shape[1] != n * n * M:
+            buf = self._buf = np.empty((2, n * n * M))
+        T = buf[0].reshape(n, n, M)                                        # (D Kᵀ)[i, j]
+        tmp = buf[1].reshape(n, n, M)
+        np.multiply(D[:, None, 0], K[None, :, 0], out=T)
+        for k in range(1, m):
+            np.multiply(D[:, None, k], K[None, :, k], out=tmp)
+            T += tmp
+        T = T.reshape(n * n, M)
+        Pu = self._Pu
+        Pu += T.take(self._iu_ju, axis=0)
         Pu += T.take(self._ju_iu, axis=0)
-        self._Pu = Pu
         quad = (y * (y[:, None] * Si).sum(axis=0)).sum(axis=0)
         ll = quad
         ll += logdet
