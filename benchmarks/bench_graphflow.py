@@ -27,7 +27,6 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
@@ -35,6 +34,7 @@ import scipy.sparse.linalg as spla  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
+from _results import publish  # noqa: E402
 from flowtrack import sceneflow  # noqa: E402
 from flowtrack.sceneflow import (  # noqa: E402
     graph_laplacian,
@@ -45,7 +45,6 @@ from flowtrack.sceneflow import (  # noqa: E402
     scene_flow_metrics,
 )
 
-HERE = Path(__file__).resolve().parent
 DT = 0.1
 
 
@@ -212,12 +211,7 @@ def main() -> int:
         + ("met" if max(v for k, v in ratios.items() if k.startswith("graph")) >= 2 else "NOT met"),
     ]
     text = "\n".join(lines) + "\n"
-    print(text)
-    if not quick:  # a smoke run must not overwrite the recorded results
-        out = HERE / "results" / "graphflow.md"
-        out.parent.mkdir(exist_ok=True)
-        out.write_text(text)
-        print("wrote", out)
+    publish("graphflow", text, quick)
     return 0
 
 

@@ -27,15 +27,13 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 from scipy.sparse.linalg import cg  # noqa: E402
 
+from _results import publish  # noqa: E402
 from flowtrack.variational import grid_laplacian, variational_scene_flow  # noqa: E402
-
-HERE = Path(__file__).resolve().parent
 
 
 def synthetic_pair(H, W, dt, seed=0):
@@ -168,12 +166,7 @@ def main() -> int:
         ok = "met" if ratio >= 50 and diff <= 1e-6 else "NOT met"
         lines.append(f"- alpha = {a:g}: speed-up {ratio:.1f}x, max |Δv| {diff:.2e} → {ok}")
     text = "\n".join(lines) + "\n"
-    print(text)
-    if not args.quick:
-        out = HERE / "results" / "variational.md"
-        out.parent.mkdir(exist_ok=True)
-        out.write_text(text)
-        print("wrote", out)
+    publish("variational", text, args.quick)
     return 0
 
 

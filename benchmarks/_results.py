@@ -1,0 +1,18 @@
+"""Where the benchmark scripts put their tables: printed always, recorded only by full runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def publish(name: str, text: str, quick: bool) -> None:
+    """Print ``text``; unless ``quick`` (a smoke run), write it to ``results/<name>.md``."""
+    print(text)
+    if quick:
+        return
+    RESULTS.mkdir(exist_ok=True)
+    out = RESULTS / f"{name}.md"
+    out.write_text(text)
+    print("wrote", out)
