@@ -249,12 +249,24 @@ def _block_pcg(A: sp.csr_matrix, B: np.ndarray, rtol: float, maxiter: int) -> tu
     return X, it, bool((np.linalg.norm(R, axis=0) <= target).all())
 
 
-def _solve_spd(A: sp.csr_matrix, B: np.ndarray, solver: str, kappa: float, tol: float) -> np.ndarray:
-    """Solve ``A X = B`` for SPD sparse A with the chosen method (see :func:`graph_scene_flow`)."""
+def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
+    """Return ``solve(B)`` for ``A X = B``, SPD sparse A; a direct method factorises A once here.
+
+    ``solver`` as in :func:`graph_scene_flow`; several right-hand sides (or several calls, as in
+    :func:`iterative_graph_scene_flow`) share the one factorisation.
+    """
     if solver == "auto":
         limit = _CG_KAPPA_WITH_CHOLMOD if HAVE_CHOLMOD else _CG_KAPPA_WITHOUT_CHOLMOD
         solver = "cg" if kappa <= limit else ("cholmod" if HAVE_CHOLMOD else "splu")
-    if solver == "cg":
+    if solver == "cholmod":
+        if not HAVE_CHOLMOD:
+            raise ValueError("solver='cholmod' needs scikit-sparse (sksparse.cholmod), not importable")
+        return _cholmod_cholesky(A.tocsc())
+    if solver == "splu":
+        return spla.splu(A.tocsc(), permc_spec="COLAMD").solve
+    direct = []  # built only if CG ever fails
+
+    def cg_solve(B: np.ndarray) -> np.ndarray:
         # ||x - x*|| / ||x*|| <= cond(A) ||r|| / ||b||, so a residual of tol / kappa bounds the error
         # by tol; the floor keeps the target above what rounding lets the true residual reach.
         rtol = max(tol / kappa, 8.0 * np.finfo(float).eps * kappa)
@@ -266,13 +278,19 @@ def _solve_spd(A: sp.csr_matrix, B: np.ndarray, solver: str, kappa: float, tol: 
             RuntimeWarning,
             stacklevel=3,
         )
-        solver = "cholmod" if HAVE_CHOLMOD else "splu"
-    if solver == "cholmod":
-        if not HAVE_CHOLMOD:
-            raise ValueError("solver='cholmod' needs scikit-sparse (sksparse.cholmod), not importable")
-        return _cholmod_cholesky(A.tocsc())(B)
-    lu = spla.splu(A.tocsc(), permc_spec="COLAMD")
-    return lu.solve(B)
+        if not direct:
+            direct.append(_spd_solver(A, "cholmod" if HAVE_CHOLMOD else "splu", kappa, tol))
+        return direct[0](B)
+
+    return cg_solve
+
+
+def _graph_system(n: int, W: sp.csr_matrix, dt: float, lam: float) -> tuple[sp.csr_matrix, float]:
+    """The matrix ``dt² I + lam L`` of graph scene flow and its Gershgorin condition bound."""
+    L = _laplacian(W)  # W was validated (given) or is symmetric by construction
+    A = (lam * L + sp.diags(np.full(n, dt * dt))).tocsr()
+    kappa = 1.0 + 2.0 * lam * float(L.diagonal().max()) / (dt * dt)
+    return A, kappa
 
 
 def graph_scene_flow(
@@ -373,11 +391,8 @@ def graph_scene_flow(
     B = dt * (Y - X)
     if lam == 0.0 or Wm is None or Wm.nnz == 0:
         return B / (dt * dt)
-    L = _laplacian(Wm)  # Wm was validated (W given) or is symmetric by construction
-    A = (lam * L + sp.diags(np.full(n, dt * dt))).tocsr()
-    dmax = float(L.diagonal().max())
-    kappa = 1.0 + 2.0 * lam * dmax / (dt * dt)
-    return _solve_spd(A, B, solver, kappa, tol)
+    A, kappa = _graph_system(n, Wm, dt, lam)
+    return _spd_solver(A, solver, kappa, tol)(B)
 
 
 def nearest_neighbor_targets(points_t, points_t1) -> np.ndarray:
@@ -430,7 +445,7 @@ def iterative_graph_scene_flow(
     starting from :math:`v^{(0)} = 0` (the first pass is exactly :func:`graph_scene_flow` on
     :func:`nearest_neighbor_targets`): the smoothness term carries the normal components of
     differently oriented faces of one object across it, and the re-matching then looks for partners
-    where the object has moved to. The graph (and so the system matrix) is built once.
+    where the object has moved to. The graph and the system matrix are built, and factorised, once.
 
     Parameters
     ----------
@@ -472,15 +487,19 @@ def iterative_graph_scene_flow(
     lam = nonnegative(lam, "lam")
     iterations = positive_int(iterations, "iterations")
     tol = positive(tol, "tol")
-    W = None
+    solve = None  # lam = 0: no graph, v = (Y - X) / dt
     if lam > 0:
         k = positive_int(k, "k")
         W = knn_graph(X, k=k, sigma=None if sigma is None else positive(sigma, "sigma"))
+        if W.nnz:
+            A, kappa = _graph_system(X.shape[0], W, dt, lam)
+            solve = _spd_solver(A, "auto", kappa, 1e-8)  # one factorisation for every pass
     tree = cKDTree(Z)
     V = np.zeros_like(X)
     for _ in range(iterations):
         _, idx = tree.query(X + V * dt, k=1, workers=-1)
-        V_new = graph_scene_flow(X, Z[idx], dt, lam, W=W) if W is not None else (Z[idx] - X) / dt
+        B = dt * (Z[idx] - X)
+        V_new = B / (dt * dt) if solve is None else solve(B)
         change = float(np.abs(V_new - V).max()) * dt
         V = V_new
         if change <= tol:
