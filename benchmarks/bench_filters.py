@@ -30,6 +30,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter as FPKalmanFilter
 from filterpy.monte_carlo import systematic_resample as fp_systematic_resample
 
+from _results import publish
 from flowtrack.kalman import BatchKalmanFilter, constant_velocity_model
 from flowtrack.particle import ParticleFilter, systematic_resample
 
@@ -313,11 +314,7 @@ def main():
         *[f"| {name} | {v:.1f} |" for name, v in p["stages"].items()],
         "",
     ]
-    text = "\n".join(lines)
-    out = Path(__file__).resolve().parent / "results" / "filters.md"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
-    print(text)
+    publish("filters", "\n".join(lines), args.quick)
 
 
 if __name__ == "__main__":

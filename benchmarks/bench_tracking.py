@@ -12,8 +12,8 @@ Usage::
 
     .venv/bin/python benchmarks/bench_tracking.py [--quick] [--check]
 
-Writes ``benchmarks/results/tracking.md`` and prints it. ``--check`` exits with status 1 when a
-target is missed.
+Prints its table and, unless ``--quick``, writes it to ``benchmarks/results/tracking.md``.
+``--check`` exits with status 1 when a target is missed.
 """
 
 from __future__ import annotations
@@ -23,13 +23,13 @@ import os
 import platform
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import scipy
 from filterpy.kalman import KalmanFilter as FilterPyKF
 from scipy.optimize import linear_sum_assignment
 
+from _results import publish
 from flowtrack.association import chi2_gate
 from flowtrack.kalman import constant_velocity_model
 from flowtrack.tracking import MultiObjectTracker
@@ -136,7 +136,6 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer frames and repeats")
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "tracking.md"))
     args = ap.parse_args(argv)
     n_timed, repeats = (60, 3) if args.quick else (300, 7)
     rng = np.random.default_rng(0)
@@ -202,11 +201,7 @@ def main(argv=None) -> int:
         f"{'--quick' if args.quick else 'full'} run.",
         "",
     ]
-    text = "\n".join(lines)
-    out_path = Path(args.out)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    out_path.write_text(text, encoding="utf-8")
-    print(text)
+    publish("tracking", "\n".join(lines), args.quick)
     if args.check and not (ok_ratio and ok_rate):
         return 1
     return 0
