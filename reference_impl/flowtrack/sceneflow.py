@@ -433,13 +433,14 @@ def iterative_graph_scene_flow(
     *,
     iterations: int = 5,
     tol: float = 1e-4,
-) -> np.ndarray:
+    return_passes: bool = False,
+):
     r"""Graph scene flow with re-matched correspondences (a non-rigid ICP).
 
     Nearest-neighbour targets only see the motion *normal* to a surface: a face sliding along itself
     matches its own neighbours. Alternating the two steps of the syllabus fixes much of that bias,
 
-    .. math::  Y^{(s)}_i = \operatorname{NN}_{t+1}ig(X_i + v^{(s)}_i \Delta tig), \qquad
+    .. math::  Y^{(s)}_i = \operatorname{NN}_{t+1}\big(X_i + v^{(s)}_i \Delta t\big), \qquad
                v^{(s+1)} = \operatorname{argmin}_v E(v; Y^{(s)}),
 
     starting from :math:`v^{(0)} = 0` (the first pass is exactly :func:`graph_scene_flow` on
@@ -460,10 +461,15 @@ def iterative_graph_scene_flow(
     tol : float > 0
         Stop when no displacement :math:`v_i \Delta t` changed by more than ``tol`` (units of the
         points) in a pass.
+    return_passes : bool
+        Also return the list of every pass's velocities; ``passes[0]`` is exactly
+        :func:`graph_scene_flow` on :func:`nearest_neighbor_targets`, so a caller wanting both needs
+        only this call.
 
     Returns
     -------
     V : ndarray, shape (N, 3)
+    passes : list of ndarray, shape (N, 3), only with ``return_passes=True``
 
     Examples
     --------
@@ -496,15 +502,17 @@ def iterative_graph_scene_flow(
             solve = _spd_solver(A, "auto", kappa, 1e-8)  # one factorisation for every pass
     tree = cKDTree(Z)
     V = np.zeros_like(X)
+    passes = []
     for _ in range(iterations):
         _, idx = tree.query(X + V * dt, k=1, workers=-1)
         B = dt * (Z[idx] - X)
         V_new = B / (dt * dt) if solve is None else solve(B)
         change = float(np.abs(V_new - V).max()) * dt
         V = V_new
+        passes.append(V)
         if change <= tol:
             break
-    return V
+    return (V, passes) if return_passes else V
 
 
 # ----------------------------------------------------------------------------------------------
