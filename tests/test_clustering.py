@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from scipy.spatial.distance import cdist
 from sklearn.metrics import adjusted_rand_score
 
 from flowtrack.clustering import cluster_motion, motion_affinity_graph, tracks_from_clusters
@@ -87,15 +88,59 @@ def test_connected_components_are_clusters():
     assert adjusted_rand_score(gt, lab) == 1.0
 
 
-def test_affinity_weights(rng):
-    P = rng.uniform(0, 1, (50, 3))
-    V = rng.normal(size=(50, 3))
-    W = motion_affinity_graph(P, V, radius=0.4, sigma_v=0.7, k=5).tocoo()
-    i, j, w = W.row, W.col, W.data
-    np.testing.assert_allclose(w, np.exp(-np.sum((V[i] - V[j]) ** 2, 1) / 0.49), rtol=1e-12)
-    assert (np.linalg.norm(P[i] - P[j], axis=1) <= 0.4).all() and (i != j).all()
-    D = W.toarray()
-    np.testing.assert_array_equal(D, D.T)
+def brute_motion_affinity(P, V, radius, sigma_v, k):
+    """Dense W from all pairwise distances: each point's <= k nearest neighbours within ``radius``,
+    union with the transpose, motion weights exp(-|v_i - v_j|^2 / sigma_v^2)."""
+    n = len(P)
+    D = cdist(P, P)
+    np.fill_diagonal(D, np.inf)
+    E = np.zeros((n, n), dtype=bool)
+    for i in range(n):
+        near = [j for j in np.argsort(D[i], kind="stable")[:k] if D[i, j] <= radius]
+        E[i, near] = True
+    E |= E.T
+    dv2 = cdist(V, V, "sqeuclidean")
+    return np.where(E, np.exp(-dv2 / sigma_v**2), 0.0)
+
+
+@pytest.mark.parametrize(
+    ("dim", "radius", "k"),
+    [(3, 0.4, 5), (3, 0.25, 3), (2, 0.2, 4), (3, 0.3, 100), (3, 0.01, 5)],
+)
+def test_affinity_graph_matches_brute_force(rng, dim, radius, k):
+    n = 60
+    P = rng.uniform(0, 1, (n, dim))
+    V = rng.normal(size=(n, dim))
+    sigma_v = 0.7
+    W = motion_affinity_graph(P, V, radius=radius, sigma_v=sigma_v, k=k)
+    Wd = W.toarray()
+    np.testing.assert_allclose(Wd, brute_motion_affinity(P, V, radius, sigma_v, k), rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(Wd, Wd.T)
+    assert (np.diag(Wd) == 0).all()
+    in_radius = (cdist(P, P) <= radius).sum(1) - 1
+    if radius >= 0.2 and k < n:
+        # both limits bite: the k cap trims some points, the radius limits others
+        assert (in_radius > k).any() and (in_radius < k).any()
+
+
+def test_affinity_graph_brute_force_is_sensitive():
+    """The oracle tells the cap, the radius and the symmetrisation apart on a hand-made example."""
+    P = np.array([[0.0, 0, 0], [0.1, 0, 0], [0.25, 0, 0], [0.45, 0, 0], [2.0, 0, 0]])
+    V = np.array([[0.0, 0, 0], [1.0, 0, 0], [0.0, 2.0, 0], [0.0, 0, 0], [0.0, 0, 0]])
+    W = brute_motion_affinity(P, V, radius=0.3, sigma_v=1.0, k=1)
+    # nearest (radius 0.3): 0->1, 1->0, 2->1, 3->2, 4 -> none (2.0 away); union with the transpose
+    e = np.exp
+    expected = np.array(
+        [
+            [0, e(-1), 0, 0, 0],
+            [e(-1), 0, e(-5), 0, 0],
+            [0, e(-5), 0, e(-4), 0],
+            [0, 0, e(-4), 0, 0],
+            [0, 0, 0, 0, 0],
+        ]
+    )
+    np.testing.assert_allclose(W, expected, rtol=1e-15)
+    np.testing.assert_allclose(motion_affinity_graph(P, V, radius=0.3, sigma_v=1.0, k=1).toarray(), expected)
 
 
 def test_tracks_from_clusters(rng):
@@ -119,12 +164,32 @@ def test_tracks_on_scene_match_object_motion(frame):
         assert min(np.linalg.norm(cen - g) for g in gt_means.values()) < 1e-9
 
 
-def test_deterministic(frame):
+def _noisy(frame):
     rng = np.random.default_rng(1)
-    V = frame.gt_flow + rng.normal(0.0, 0.005, frame.gt_flow.shape)
-    a = cluster_motion(frame.points, V, radius=0.02, sigma_v=0.05, min_speed=0.03, n_clusters=3)
-    b = cluster_motion(frame.points, V, radius=0.02, sigma_v=0.05, min_speed=0.03, n_clusters=3)
-    np.testing.assert_array_equal(a, b)
+    return frame.gt_flow + rng.normal(0.0, 0.005, frame.gt_flow.shape)
+
+
+@pytest.mark.parametrize(
+    ("case", "n_clusters"),
+    [("scene", None), ("scene", 3), ("scene", 2), ("weak_link", None), ("weak_link", 2)],
+)
+@pytest.mark.parametrize("method", ["spectral", "connected"])
+def test_partition_invariant_to_point_order(frame, case, method, n_clusters):
+    if case == "scene":
+        P, V, kw = frame.points, _noisy(frame), {"radius": 0.02, "sigma_v": 0.05, "min_speed": 0.03}
+    else:  # one connected component that the spectral step must cut (k-means on eigenvectors)
+        P, V, _ = _two_patches(0.11)
+        kw = {"radius": 0.0101, "sigma_v": 0.05}
+    kw.update(method=method, n_clusters=n_clusters)
+    a = cluster_motion(P, V, **kw)
+    perm = np.random.default_rng(7).permutation(len(P))
+    b = np.empty_like(a)
+    b[perm] = cluster_motion(P[perm], V[perm], **kw)  # un-permute: b[i] is the label of point i
+    assert adjusted_rand_score(a, b) == 1.0
+    np.testing.assert_array_equal(a == -1, b == -1)  # same static set
+    assert len(set(a[a >= 0].tolist())) >= 2  # a non-trivial partition
+    # and the call is deterministic
+    np.testing.assert_array_equal(cluster_motion(P, V, **kw), a)
 
 
 @pytest.mark.parametrize(

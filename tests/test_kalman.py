@@ -97,10 +97,42 @@ def test_white_noise_Q_matches_filterpy_derivative_order(dt, q, dim):
     ref = Q_discrete_white_noise(dim=2, dt=dt, var=q, block_size=dim, order_by_dim=False)
     assert Q.shape == (2 * dim, 2 * dim)
     close(Q, ref, 1e-12)
-    # and it is the Kronecker product Q1d ⊗ I (position block first), symmetric PSD
-    Q1d = q * np.array([[dt**4 / 4, dt**3 / 2], [dt**3 / 2, dt**2]])
-    close(Q, np.kron(Q1d, np.eye(dim)), 1e-12)
+    # and entry by entry from the state labels [p_1..p_d, v_1..v_d]: same axis -> the 1-D entry, else 0
+    close(Q, wna_Q_from_labels(dt, q, dim), 1e-12)
     assert np.linalg.eigvalsh(Q).min() >= -1e-12 * max(1.0, np.abs(Q).max())
+
+
+def wna_Q_from_labels(dt, q, dim):
+    """Q[i, j] = q c(order_i, order_j) when state i and j are on the same axis, 0 otherwise."""
+    c = {(0, 0): dt**4 / 4, (0, 1): dt**3 / 2, (1, 0): dt**3 / 2, (1, 1): dt**2}
+    labels = [(0, axis) for axis in range(dim)] + [(1, axis) for axis in range(dim)]  # (order, axis)
+    Q = np.zeros((2 * dim, 2 * dim))
+    for i, (oi, ai) in enumerate(labels):
+        for j, (oj, aj) in enumerate(labels):
+            Q[i, j] = q * c[(oi, oj)] if ai == aj else 0.0
+    return Q
+
+
+def test_wna_entries_are_the_integrated_piecewise_constant_acceleration():
+    """The table c of the label oracle, derived in sympy: a constant acceleration a over one step moves
+    the state by g a, g = (double integral of 1, integral of 1), so Q_1D = q g g^T."""
+    import sympy
+
+    t, s, u, q, a = sympy.symbols("dt s u q a", positive=True)
+    g = sympy.Matrix(
+        [sympy.integrate(sympy.integrate(1, (u, 0, s)), (s, 0, t)), sympy.integrate(1, (s, 0, t))]
+    )
+    # check g against a dynamic model: x' = [[0, 1], [0, 0]] x + [0, 1] a, from x = 0 over dt
+    A = sympy.Matrix([[0, 1], [0, 0]])
+    x_dt = sympy.integrate((A * (t - s)).exp() * sympy.Matrix([0, a]), (s, 0, t))
+    assert sympy.simplify(x_dt - g * a) == sympy.zeros(2, 1)
+    Q1d = q * g * g.T
+    for dt_val, q_val, dim in [(0.1, 1.0, 2), (0.7, 3.5, 3), (2.0, 0.25, 1)]:
+        want = np.array(Q1d.subs({t: dt_val, q: q_val}).evalf(), dtype=float)
+        got = wna_Q_from_labels(dt_val, q_val, dim)
+        for axis in range(dim):
+            idx = [axis, dim + axis]
+            close(got[np.ix_(idx, idx)], want, 1e-14)
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -405,6 +437,39 @@ def test_steady_state_matches_scipy_and_converged_filter(seed):
         fp.update(np.zeros(m))
     fp.predict()
     close(P, fp.P, 1e-8)
+    # the covariance recursion written out here (Joseph update), iterated until it stops moving
+    close(P, iterate_riccati(F, H, Q, R, 10 * np.eye(n)), 1e-8)
+    # the stabilising solution: the predicted-error dynamics F (I - K H) are stable
+    K = P @ H.T @ np.linalg.inv(S)
+    assert max(abs(np.linalg.eigvals(F @ (np.eye(n) - K @ H)))) < 1
+    assert np.linalg.eigvalsh(P).min() > 0
+
+
+def iterate_riccati(F, H, Q, R, P0, tol=1e-13, max_iter=100_000):
+    """Predicted covariance of  predict -> update -> predict ... , iterated to a fixed point."""
+    n = F.shape[0]
+    P = F @ P0 @ F.T + Q
+    for _ in range(max_iter):
+        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+        A = np.eye(n) - K @ H
+        P_post = A @ P @ A.T + K @ R @ K.T
+        P_new = F @ P_post @ F.T + Q
+        if np.abs(P_new - P).max() <= tol * max(1.0, np.abs(P).max()):
+            return P_new
+        P = P_new
+    raise AssertionError("the covariance recursion did not converge")
+
+
+@pytest.mark.parametrize(
+    ("f", "h", "q", "r"), [(1.0, 1.0, 1.0, 1.0), (0.5, 2.0, 0.3, 0.7), (1.3, 1.0, 0.1, 2.0)]
+)
+def test_steady_state_scalar_closed_form(f, h, q, r):
+    """Scalar DARE  h² P² + (r (1 - f²) - q h²) P - q r = 0: the positive root."""
+    b = r * (1 - f**2) - q * h**2
+    root = (-b + np.sqrt(b**2 + 4 * h**2 * q * r)) / (2 * h**2)
+    close(steady_state_covariance([[f]], [[h]], [[q]], [[r]])[0, 0], root, 1e-12)
+    F, H, Q, R = (np.array([[v]]) for v in (f, h, q, r))
+    close(iterate_riccati(F, H, Q, R, np.eye(1)), [[root]])
 
 
 def test_steady_state_cv_model_against_converged_cv_filter():
@@ -416,6 +481,7 @@ def test_steady_state_cv_model_against_converged_cv_filter():
         kf.update([0.0, 0.0])
     kf.predict()
     close(P, kf.P, 1e-7)
+    close(P, iterate_riccati(F, H, Q, R, 1e3 * np.eye(4)), 1e-9)
 
 
 def test_steady_state_rejects_undetectable_and_unexcited():

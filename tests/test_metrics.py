@@ -345,10 +345,23 @@ def test_random_sequences_agree_with_brute_force_oracle(rng):
             assert m[k] == o[k], k
         for k in ("mota", "idf1", "motp"):
             assert m[k] == pytest.approx(o[k], nan_ok=True), k
-        # bookkeeping identities
-        assert m["matches"] + m["id_switches"] + m["fn"] == m["num_objects"]
-        assert m["matches"] + m["id_switches"] + m["fp"] == m["num_predictions"]
-        assert m["mota"] == pytest.approx(1 - (m["fn"] + m["fp"] + m["id_switches"]) / m["num_objects"])
+        # bookkeeping against counts made here: every gt entry is associated (match or switch) or
+        # missed, every hypothesis entry associated or false; the associations are the oracle's
+        n_obj = sum(len(g) for g in gt)
+        n_pred = sum(len(h) for h in hyp)
+        assoc = o["matches"] + o["id_switches"]
+        assert (m["num_objects"], m["num_predictions"], m["num_detections"]) == (n_obj, n_pred, assoc)
+        assert (m["fn"], m["fp"]) == (n_obj - assoc, n_pred - assoc)
+        assert m["num_frames"] == len(gt)
+        assert m["num_unique_objects"] == len({k for g in gt for k in g})
+        # MOTA from those counts: 1 - (misses + false positives + switches) / gt entries
+        misses, false_pos = n_obj - assoc, n_pred - assoc
+        assert m["mota"] == pytest.approx(1 - (misses + false_pos + o["id_switches"]) / n_obj)
+        assert m["precision"] == pytest.approx(assoc / n_pred)
+        assert m["recall"] == pytest.approx(assoc / n_obj)
+        assert m["idp"] == pytest.approx(o["idtp"] / n_pred)
+        assert m["idr"] == pytest.approx(o["idtp"] / n_obj)
+        assert (m["idfn"], m["idfp"]) == (n_obj - o["idtp"], n_pred - o["idtp"])
 
 
 def test_renaming_hypotheses_changes_nothing(rng):

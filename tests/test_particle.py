@@ -119,24 +119,47 @@ def test_posterior_mean_matches_kalman_over_a_track(seed):
     assert n_resampled > 0
 
 
-def test_resampling_only_below_threshold():
+def reweight_extended(log_w_prev, ll):
+    """Posterior weights, N_eff and log evidence computed directly (no log-sum-exp shift) in long double:
+    w_i = w_prev_i exp(ll_i) / sum_j w_prev_j exp(ll_j),  N_eff = 1 / sum_i w_i^2."""
+    u = np.exp(np.asarray(log_w_prev, np.longdouble)) * np.exp(np.asarray(ll, np.longdouble))
+    total = u.sum()
+    assert total > 0, "the long-double oracle underflowed"
+    w = u / total
+    return w, 1 / np.sum(w * w), np.log(total)
+
+
+# exp(-3000) underflows a double but not an x87 / IEEE-quad long double
+_EXTENDED = np.finfo(np.longdouble).minexp < -5000
+
+
+@pytest.mark.parametrize(
+    "offset",
+    [0.0, pytest.param(-3000.0, marks=pytest.mark.skipif(not _EXTENDED, reason="long double == double"))],
+)
+def test_resampling_only_below_threshold(offset):
     transition, likelihood, init, _, zs = _cv_problem(3)
+    seen = set()
     for thr in (0.0, 0.5, 1.0):
-        pf = ParticleFilter(2000, transition, likelihood, init, seed=1, resample_threshold=thr)
+        pf = ParticleFilter(
+            2000, transition, lambda z, p: likelihood(z, p) + offset, init, seed=1, resample_threshold=thr
+        )
         for z in zs[:6]:
             pf.predict()
-            lw = pf.log_weights + likelihood(z, pf.particles)
-            w = np.exp(lw - lw.max())
-            w /= w.sum()
-            ess = 1.0 / (w @ w)
+            ll = likelihood(z, pf.particles) + offset
+            w, ess, log_ev = reweight_extended(pf.log_weights, ll)
             pf.update(z)
+            assert pf.log_evidence == pytest.approx(float(log_ev), rel=1e-12, abs=1e-9)
             assert pf.resampled == (ess < thr * 2000)
+            seen.add((thr, pf.resampled))
             if pf.resampled:
                 np.testing.assert_allclose(pf.weights, 1 / 2000)
                 assert pf.effective_sample_size == pytest.approx(2000)
             else:
-                np.testing.assert_allclose(pf.weights, w, rtol=1e-10, atol=1e-300)
-                assert pf.effective_sample_size == pytest.approx(ess)
+                np.testing.assert_allclose(pf.weights, w.astype(float), rtol=1e-10, atol=1e-300)
+                assert pf.effective_sample_size == pytest.approx(float(ess), rel=1e-10)
+    assert {(0.0, False), (1.0, True)} <= seen  # both branches are exercised
+    assert {(0.5, False), (0.5, True)} <= seen  # and the threshold itself decides
 
 
 def test_seeded_runs_are_reproducible_and_logs_do_not_underflow():

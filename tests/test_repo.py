@@ -1,8 +1,11 @@
 """Project invariants: the set-up commands, CI entry point and notebook hygiene."""
 
 import json
+import re
 import subprocess
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -17,16 +20,95 @@ def test_ci_runs_the_readme_test_command():
     assert "make test" in lines
 
 
-def test_no_committed_notebook_has_outputs():
-    tracked = subprocess.run(
-        ["git", "ls-files", "*.ipynb"], cwd=ROOT, capture_output=True, text=True, check=False
-    ).stdout.split()
+def _tracked(*patterns: str) -> list[str]:
+    """Files git tracks that match ``patterns`` (read-only ``git ls-files``)."""
+    res = subprocess.run(["git", "ls-files", "--", *patterns], cwd=ROOT, capture_output=True, text=True)
+    assert res.returncode == 0, f"git ls-files failed: {res.stderr}"
+    return res.stdout.split()
+
+
+def notebooks_with_outputs(paths) -> list[str]:
+    """The ``.ipynb`` files among ``paths`` that have a code cell with outputs or an execution count."""
     bad = []
-    for rel in tracked:
-        nb = json.loads((ROOT / rel).read_text())
-        if any(c.get("outputs") for c in nb.get("cells", []) if c.get("cell_type") == "code"):
-            bad.append(rel)
-    assert not bad, f"notebooks with committed outputs: {bad}"
+    for path in paths:
+        nb = json.loads(Path(path).read_text(encoding="utf-8"))
+        code = [c for c in nb.get("cells", []) if c.get("cell_type") == "code"]
+        if any(c.get("outputs") or c.get("execution_count") is not None for c in code):
+            bad.append(str(path))
+    return bad
+
+
+_FRONT_MATTER = re.compile(r"\A---\s*\n(.*?)\n---\s*\n", re.DOTALL)
+
+
+def _jupytext_sources() -> list[Path]:
+    """Tracked ``.md`` files under lessons/ and solutions/ whose front matter has a ``jupytext:`` key."""
+    found = []
+    for rel in _tracked("lessons/*.md", "solutions/*.md"):
+        m = _FRONT_MATTER.match((ROOT / rel).read_text(encoding="utf-8"))
+        if m and re.search(r"^jupytext:", m.group(1), re.MULTILINE):
+            found.append(ROOT / rel)
+    return found
+
+
+def test_no_committed_notebook_has_outputs():
+    assert not notebooks_with_outputs(ROOT / rel for rel in _tracked("*.ipynb"))
+
+
+def test_output_check_flags_a_notebook_with_outputs(tmp_path):
+    """The check above is not vacuous: it catches outputs and execution counts, and passes clean ones."""
+    nbformat = pytest.importorskip("nbformat")
+    v4 = nbformat.v4
+
+    def write(name, cell):
+        nb = v4.new_notebook(cells=[v4.new_markdown_cell("# t"), cell])
+        path = tmp_path / name
+        nbformat.write(nb, str(path))
+        return path
+
+    clean = write("clean.ipynb", v4.new_code_cell("x = 1"))
+    stream = write(
+        "stream.ipynb",
+        v4.new_code_cell("print(1)", outputs=[v4.new_output("stream", name="stdout", text="1\n")]),
+    )
+    result = write(
+        "result.ipynb",
+        v4.new_code_cell(
+            "1", execution_count=3, outputs=[v4.new_output("execute_result", {"text/plain": "1"})]
+        ),
+    )
+    counted = write("counted.ipynb", v4.new_code_cell("x = 1", execution_count=1))
+    assert notebooks_with_outputs([clean]) == []
+    assert notebooks_with_outputs([clean, stream, result, counted]) == [
+        str(stream),
+        str(result),
+        str(counted),
+    ]
+
+
+def test_no_ipynb_is_tracked_under_lessons():
+    assert _tracked("lessons/*.ipynb", "lessons/**/*.ipynb") == [], "lessons are MyST .md sources only"
+
+
+def test_jupytext_sources_round_trip_to_notebooks_without_outputs(tmp_path):
+    jupytext = pytest.importorskip("jupytext")
+    sources = _jupytext_sources()
+    dirs = {p.parent.name for p in sources}
+    assert dirs == {"lessons", "solutions"}, f"expected jupytext sources in lessons/ and solutions/: {dirs}"
+    written = []
+    for src in sources:
+        nb = jupytext.read(str(src))
+        code = [c.source for c in nb.cells if c.cell_type == "code"]
+        assert code, f"{src.name}: no code cell"
+        out = tmp_path / (src.stem + ".ipynb")
+        jupytext.write(nb, str(out), fmt="ipynb")
+        back = jupytext.read(str(out))
+        assert [c.source for c in back.cells if c.cell_type == "code"] == code, f"{src.name}: round trip"
+        # and back to MyST: the same cells again
+        again = jupytext.reads(jupytext.writes(back, fmt="md:myst"), fmt="md:myst")
+        assert [(c.cell_type, c.source) for c in again.cells] == [(c.cell_type, c.source) for c in nb.cells]
+        written.append(out)
+    assert not notebooks_with_outputs(written)
 
 
 def test_cli_help_on_every_subcommand():
