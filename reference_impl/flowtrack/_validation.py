@@ -18,8 +18,13 @@ __all__ = [
     "positive",
     "nonnegative",
     "positive_int",
+    "probability",
+    "spatial_dim",
     "check_psd",
     "check_square",
+    "check_symmetric",
+    "cholesky",
+    "not_positive_definite",
 ]
 
 
@@ -133,6 +138,26 @@ def positive_int(value, name: str, minimum: int = 1) -> int:
     return v
 
 
+def probability(value, name: str) -> float:
+    """Return ``value`` as float, raising unless it is a real number with ``0 < value < 1``.
+
+    ``TypeError`` for a non-real value (bools included), ``ValueError`` for NaN, inf or a value
+    outside the open interval.
+    """
+    p = _scalar(value, name)
+    if not 0.0 < p < 1.0:
+        raise ValueError(f"{name} must satisfy 0 < {name} < 1, got {p}")
+    return p
+
+
+def spatial_dim(value, name: str = "dim") -> int:
+    """Return ``value`` as int, raising unless it is a number of spatial axes: 1, 2 or 3."""
+    d = positive_int(value, name)
+    if d > 3:
+        raise ValueError(f"{name} must be 1, 2 or 3, got {d}")
+    return d
+
+
 def check_square(mat: np.ndarray, name: str, n: int | None = None) -> np.ndarray:
     """Check that the last two axes of ``mat`` are square (and of size ``n`` if given)."""
     if mat.ndim < 2 or mat.shape[-1] != mat.shape[-2]:
@@ -142,16 +167,70 @@ def check_square(mat: np.ndarray, name: str, n: int | None = None) -> np.ndarray
     return mat
 
 
+def _scale(mat: np.ndarray) -> float:
+    return max(1.0, float(np.abs(mat).max(initial=0.0)))
+
+
+def check_symmetric(mat: np.ndarray, name: str, *, atol: float = 1e-10) -> np.ndarray:
+    """Check that one square matrix or a stack of them is symmetric, ``ValueError`` otherwise.
+
+    Tolerance: relative ``1e-8`` plus absolute ``atol * max(1, max|mat|)``.
+
+    Examples
+    --------
+    >>> check_symmetric(np.array([[2.0, 1.0], [1.0, 2.0]]), "S").shape
+    (2, 2)
+    >>> check_symmetric(np.array([[2.0, 1.0], [0.0, 2.0]]), "S")
+    Traceback (most recent call last):
+    ...
+    ValueError: S must be symmetric
+    """
+    check_square(mat, name)
+    if not np.allclose(mat, np.swapaxes(mat, -1, -2), rtol=1e-8, atol=atol * _scale(mat)):
+        raise ValueError(f"{name} must be symmetric")
+    return mat
+
+
+def not_positive_definite(name: str, hint: str | None = None) -> ValueError:
+    """The ``ValueError`` "<name> must be positive definite[; <hint>]" (for code that checks itself)."""
+    return ValueError(f"{name} must be positive definite" + (f"; {hint}" if hint else ""))
+
+
+def cholesky(mat: np.ndarray, name: str, *, hint: str | None = None) -> np.ndarray:
+    """Lower Cholesky factor(s) ``L`` with ``mat = L Lᵀ``, of one matrix or a stack ``(..., n, n)``.
+
+    Only the lower triangle of ``mat`` is read (check symmetry first with :func:`check_symmetric`
+    where it matters).
+
+    Raises
+    ------
+    ValueError
+        "<name> must be positive definite" (plus ``hint``) if a matrix is not positive definite.
+
+    Examples
+    --------
+    >>> cholesky(np.array([[4.0, 2.0], [2.0, 2.0]]), "S")
+    array([[2., 0.],
+           [1., 1.]])
+    >>> cholesky(np.array([[1.0, 2.0], [2.0, 1.0]]), "S")
+    Traceback (most recent call last):
+    ...
+    ValueError: S must be positive definite
+    """
+    try:
+        return np.linalg.cholesky(mat)
+    except np.linalg.LinAlgError:
+        raise not_positive_definite(name, hint) from None
+
+
 def check_psd(mat: np.ndarray, name: str, *, strict: bool = False, atol: float = 1e-9) -> np.ndarray:
     """Check symmetry and positive (semi-)definiteness of one matrix or a stack of them.
 
-    Symmetry is checked to a relative tolerance; definiteness through the smallest
-    eigenvalue (``> 0`` if ``strict`` else ``>= -atol * scale``).
+    Symmetry is checked to a relative tolerance (:func:`check_symmetric`); definiteness through
+    the smallest eigenvalue (``> 0`` if ``strict`` else ``>= -atol * scale``).
     """
-    check_square(mat, name)
-    scale = max(1.0, float(np.abs(mat).max(initial=0.0)))
-    if not np.allclose(mat, np.swapaxes(mat, -1, -2), rtol=1e-8, atol=1e-10 * scale):
-        raise ValueError(f"{name} must be symmetric")
+    check_symmetric(mat, name)
+    scale = _scale(mat)
     eig = np.linalg.eigvalsh(0.5 * (mat + np.swapaxes(mat, -1, -2)))
     lo = eig.min() if eig.size else 0.0
     if strict and lo <= 0:

@@ -29,7 +29,7 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
-from ._validation import as_array, check_psd, positive
+from ._validation import as_array, check_symmetric, cholesky, positive
 
 __all__ = ["GridBayesFilter", "gaussian_likelihood", "linear_gaussian_kernel"]
 
@@ -37,10 +37,12 @@ _LOG_2PI = float(np.log(2.0 * np.pi))
 
 
 def _whitener(cov: np.ndarray, name: str):
-    try:
-        L = np.linalg.cholesky(cov)
-    except np.linalg.LinAlgError:
-        raise ValueError(f"{name} must be positive definite (a grid needs a proper density)") from None
+    """``L⁻¹`` and the log normaliser of N(0, cov); ``ValueError`` unless ``cov`` is symmetric PD.
+
+    The Cholesky factorisation ``cov = L Lᵀ`` is the (strict) definiteness check.
+    """
+    check_symmetric(cov, name)
+    L = cholesky(cov, name, hint="a grid needs a proper density")
     Linv = scipy.linalg.solve_triangular(L, np.eye(cov.shape[0]), lower=True)
     log_norm = -float(np.log(np.diag(L)).sum()) - 0.5 * cov.shape[0] * _LOG_2PI
     return Linv, log_norm
@@ -73,8 +75,11 @@ def linear_gaussian_kernel(F, Q) -> Callable[[np.ndarray, np.ndarray], np.ndarra
         raise ValueError(f"F must have shape (d, d), got {F.shape}")
     d = F.shape[0]
     Q = as_array(Q, "Q", (d, d))
-    check_psd(Q, "Q", strict=True)
-    Linv, log_norm = _whitener(Q, "Q")
+    return _gaussian_kernel(F, Q, *_whitener(Q, "Q"))
+
+
+def _gaussian_kernel(F: np.ndarray, Q: np.ndarray, Linv: np.ndarray, log_norm: float):
+    """The kernel of :func:`linear_gaussian_kernel` from validated ``F, Q`` and ``Q``'s whitener."""
     A_old = Linv @ F
 
     def kernel(x_new: np.ndarray, x_old: np.ndarray) -> np.ndarray:
@@ -112,7 +117,6 @@ def gaussian_likelihood(H, R) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
         raise ValueError(f"H must have shape (m, d), got {H.shape}")
     m = H.shape[0]
     R = as_array(R, "R", (m, m))
-    check_psd(R, "R", strict=True)
     Linv, log_norm = _whitener(R, "R")
 
     def likelihood(z: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -201,7 +205,6 @@ class GridBayesFilter:
                     "transition must be a callable kernel or a covariance of shape "
                     f"({self.dim}, {self.dim}), got shape {Q.shape}"
                 )
-            check_psd(Q, "transition", strict=True)
             self._kernel = None
             self._rw_kernel = self._random_walk_kernel(Q)
         if not callable(likelihood):
@@ -236,11 +239,15 @@ class GridBayesFilter:
         return out
 
     def _random_walk_kernel(self, Q: np.ndarray) -> np.ndarray:
-        """Kernel N(Δ; 0, Q) sampled on all grid offsets Δ (shape (2n0-1[, 2n1-1]))."""
+        """Kernel N(Δ; 0, Q) sampled on all grid offsets Δ (shape (2n0-1[, 2n1-1])).
+
+        ``ValueError`` naming ``transition`` unless ``Q`` is symmetric positive definite.
+        """
+        whitener = _whitener(Q, "transition")
         offsets = [np.arange(-(n - 1), n) * h for n, h in zip(self.shape, self.spacing)]
         mesh = np.meshgrid(*offsets, indexing="ij")
         pts = np.stack([g.ravel() for g in mesh], axis=1)
-        k = linear_gaussian_kernel(np.eye(self.dim), Q)(pts, np.zeros((1, self.dim)))[:, 0]
+        k = _gaussian_kernel(np.eye(self.dim), Q, *whitener)(pts, np.zeros((1, self.dim)))[:, 0]
         return k.reshape(mesh[0].shape)
 
     def _normalise(self, b: np.ndarray, name: str) -> np.ndarray:

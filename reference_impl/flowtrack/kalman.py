@@ -35,7 +35,16 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from ._validation import as_array, check_psd, check_square, nonnegative, positive, positive_int
+from ._validation import (
+    as_array,
+    check_psd,
+    check_square,
+    cholesky,
+    nonnegative,
+    not_positive_definite,
+    positive,
+    spatial_dim,
+)
 
 __all__ = [
     "BatchKalmanFilter",
@@ -52,13 +61,6 @@ _LOG_2PI = float(np.log(2.0 * np.pi))
 # ----------------------------------------------------------------------------------------------------
 # constant-velocity model
 # ----------------------------------------------------------------------------------------------------
-def _dim(dim) -> int:
-    d = positive_int(dim, "dim")
-    if d > 3:
-        raise ValueError(f"dim must be 1, 2 or 3, got {d}")
-    return d
-
-
 def white_noise_acceleration_Q(dt: float, q: float, dim: int = 2) -> np.ndarray:
     r"""Process noise of the discretised white-noise-acceleration (constant-velocity) model.
 
@@ -103,7 +105,7 @@ def white_noise_acceleration_Q(dt: float, q: float, dim: int = 2) -> np.ndarray:
     """
     dt = positive(dt, "dt")
     q = nonnegative(q, "q")
-    d = _dim(dim)
+    d = spatial_dim(dim, "dim")
     q1d = q * np.array([[dt**4 / 4.0, dt**3 / 2.0], [dt**3 / 2.0, dt**2]])
     return np.kron(q1d, np.eye(d))
 
@@ -145,7 +147,7 @@ def constant_velocity_model(dt: float, q: float, r, dim: int = 2):
     (array([[1., 0.]]), array([[2.]]))
     """
     dt = positive(dt, "dt")
-    d = _dim(dim)
+    d = spatial_dim(dim, "dim")
     Q = white_noise_acceleration_Q(dt, q, d)
     if np.ndim(r) == 0:
         R = positive(r, "r") * np.eye(d)
@@ -179,11 +181,19 @@ def _model(F, H, Q, R):
     return F, H, 0.5 * (Q + Q.T), 0.5 * (R + R.T)
 
 
-def _not_pd(name: str) -> ValueError:
-    return ValueError(
-        f"{name} (innovation covariance H P H^T + R) is not positive definite; "
-        "use a positive definite R or P"
-    )
+# the error for an innovation covariance that is not positive definite: "<_S_NAME> must be positive
+# definite; <_S_HINT>"
+_S_NAME = "S (innovation covariance H P H^T + R)"
+_S_HINT = "use a positive definite R or P"
+
+
+def _not_pd() -> ValueError:
+    return not_positive_definite(_S_NAME, _S_HINT)
+
+
+def _cholesky_S(S: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factor(s) of innovation covariance(s) ``S (..., m, m)``; ``ValueError`` if not PD."""
+    return cholesky(S, _S_NAME, hint=_S_HINT)
 
 
 _SMALL = 4  # up to this size, Cholesky and solves are unrolled over the matrix axes (vectorised over tracks)
@@ -193,15 +203,12 @@ def _batched_cholesky(S: np.ndarray) -> np.ndarray:
     """Lower Cholesky factors of a stack ``S (k, m, m)``; ``ValueError`` if one is not PD."""
     m = S.shape[1]
     if m > _SMALL:
-        try:
-            return np.linalg.cholesky(S)
-        except np.linalg.LinAlgError:
-            raise _not_pd("S") from None
+        return _cholesky_S(S)
     L = np.zeros_like(S)
     for j in range(m):
         d = S[:, j, j] - (L[:, j, :j] ** 2).sum(axis=1)
         if not (d > 0).all():
-            raise _not_pd("S")
+            raise _not_pd()
         L[:, j, j] = np.sqrt(d)
         for i in range(j + 1, m):
             L[:, i, j] = (S[:, i, j] - (L[:, i, :j] * L[:, j, :j]).sum(axis=1)) / L[:, j, j]
@@ -209,10 +216,22 @@ def _batched_cholesky(S: np.ndarray) -> np.ndarray:
 
 
 def _batched_cho_solve(L: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Solve ``(L Lᵀ) X = B`` for stacks ``L (k, m, m)``, ``B (k, m, r)`` by substitution."""
+    """Solve ``(L Lᵀ) X = B`` for stacks ``L (k, m, m)``, ``B (k, m, r)`` by substitution.
+
+    Forward ``L Y = B``, then backward ``Lᵀ X = Y``, vectorised over the stack (and, for
+    ``m > _SMALL``, over the already solved rows: one batched product per row).
+    """
     m = L.shape[1]
     if m > _SMALL:
-        return np.linalg.solve(L @ np.swapaxes(L, -1, -2), B)
+        Y = np.empty_like(B)
+        for i in range(m):  # forward: L Y = B
+            acc = B[:, i, :] - np.matmul(L[:, i, None, :i], Y[:, :i, :])[:, 0, :]
+            Y[:, i, :] = acc / L[:, i, i, None]
+        X = np.empty_like(B)
+        for i in reversed(range(m)):  # backward: Lᵀ X = Y
+            acc = Y[:, i, :] - np.matmul(L[:, None, i + 1:, i], X[:, i + 1:, :])[:, 0, :]
+            X[:, i, :] = acc / L[:, i, i, None]
+        return X
     Y = np.empty_like(B)
     for i in range(m):  # forward: L Y = B
         acc = B[:, i, :].copy()
@@ -300,7 +319,7 @@ def _spd_inverse_cm(S: np.ndarray, sel) -> tuple[np.ndarray, np.ndarray]:
     if sel is not None:
         minors_ok |= ~sel
     if not minors_ok.all():
-        raise _not_pd("S")
+        raise _not_pd()
     if sel is None:
         inv_det = 1.0 / det
     else:
@@ -393,11 +412,7 @@ class KalmanFilter:
         PHt = self.P @ self.H.T
         S = self.H @ PHt + self.R
         S = 0.5 * (S + S.T)
-        try:
-            cho = scipy.linalg.cho_factor(S, lower=True, check_finite=False)
-        except np.linalg.LinAlgError:
-            raise _not_pd("S") from None
-        return PHt, S, cho
+        return PHt, S, (_cholesky_S(S), True)
 
     def update(self, z) -> None:
         r"""Measurement update with ``z`` of shape ``(m,)``; ``None`` means a missed measurement.
@@ -486,6 +501,24 @@ class KalmanFilterCV2D(KalmanFilter):
 # ----------------------------------------------------------------------------------------------------
 # batch of independent tracks
 # ----------------------------------------------------------------------------------------------------
+def _model_property(name: str, doc: str) -> property:
+    """Property ``F``/``H``/``Q``/``R`` of :class:`BatchKalmanFilter`.
+
+    Reads give the stored read-only array; an assignment is validated like the constructor's
+    argument (same dimensions) and recomputes the model's operators.
+    """
+
+    def fget(self):
+        return getattr(self, "_" + name)
+
+    def fset(self, value):
+        mats = {k: getattr(self, "_" + k) for k in "FHQR"}
+        mats[name] = as_array(value, name, mats[name].shape)  # the filter's dimensions are fixed
+        self._set_model(*_model(*mats.values()))
+
+    return property(fget, fset, doc=doc + " Read-only array; assign a new one to change the model.")
+
+
 class BatchKalmanFilter:
     r"""``M`` independent Kalman filters sharing ``(F, H, Q, R)``, stored as stacked arrays.
 
@@ -504,6 +537,9 @@ class BatchKalmanFilter:
 
     Attributes
     ----------
+    F, H, Q, R : ndarray
+        The model, as validated (``Q``, ``R`` symmetrised); read-only arrays, since the filter
+        precomputes operators from them: assign a new matrix (same shape) to change one.
     x : ndarray, shape (M, n)
     P : ndarray, shape (M, n, n)
     innovation : ndarray, shape (M, m) or None
@@ -534,9 +570,9 @@ class BatchKalmanFilter:
     """
 
     def __init__(self, F, H, Q, R, x0, P0):
-        self.F, self.H, self.Q, self.R = _model(F, H, Q, R)
-        self.dim_x = n = self.F.shape[0]
-        self.dim_z = self.H.shape[0]
+        F, H, Q, R = _model(F, H, Q, R)
+        self.dim_x = n = F.shape[0]
+        self.dim_z = H.shape[0]
         iu, ju = np.triu_indices(n)
         self._iu_ju = iu * n + ju                                  # flat index of upper entry (i, j), i <= j
         self._ju_iu = ju * n + iu                                  # ... and of its mirror (j, i)
@@ -544,13 +580,14 @@ class BatchKalmanFilter:
         pos[iu, ju] = np.arange(iu.size)
         pos[ju, iu] = pos[iu, ju]
         self._mirror = pos.ravel()                                 # full entry -> its packed slot
+        self._x_cache: np.ndarray | None = None                    # x, P, _hph(): see _state_changed
+        self._P_cache: np.ndarray | None = None
+        self._hph_cache: tuple[np.ndarray, np.ndarray] | None = None
+        self._set_model(F, H, Q, R)
         x0 = as_array(x0, "x0", ("M", n))
         self._P0_default: np.ndarray | None = None
-        self._const_cache = None
         self._xc = np.ascontiguousarray(x0.T)
         self._Pu = self._pack(self._covariances(P0, "P0", x0.shape[0]))
-        self._x_cache: np.ndarray | None = None
-        self._P_cache: np.ndarray | None = None
         self._Pu_spare: np.ndarray | None = None                   # the other buffer of predict
         self._buf: np.ndarray | None = None                        # scratch of update
         self._reset_last()
@@ -584,16 +621,18 @@ class BatchKalmanFilter:
         self.log_likelihood: np.ndarray | None = None
 
     def _state_changed(self) -> None:
+        """Drop everything derived from the state (``x``, ``P``, ``H P Hᵀ + R``): call after every change."""
         self._x_cache = None
         self._P_cache = None
-
-    def __len__(self) -> int:
-        return self._xc.shape[1]
+        self._hph_cache = None
 
     @property
     def M(self) -> int:
         """Number of tracks."""
         return self._xc.shape[1]
+
+    def __len__(self) -> int:
+        return self.M
 
     # -- public arrays -------------------------------------------------------------------------------
     #
@@ -613,7 +652,7 @@ class BatchKalmanFilter:
     def x(self, value) -> None:
         value = as_array(value, "x", (self.M, self.dim_x))
         self._xc = np.ascontiguousarray(value.T)
-        self._x_cache = None
+        self._state_changed()
 
     @property
     def P(self) -> np.ndarray:
@@ -629,7 +668,7 @@ class BatchKalmanFilter:
         n = self.dim_x
         value = as_array(value, "P", (self.M, n, n))
         self._Pu = self._pack(0.5 * (value + np.swapaxes(value, -1, -2)))
-        self._P_cache = None
+        self._state_changed()
 
     @property
     def innovation(self) -> np.ndarray | None:
@@ -715,57 +754,70 @@ class BatchKalmanFilter:
     #   * every per-track product (K y, K S, D Kᵀ) is one broadcast multiply and a sum over the tiny
     #     m axis on contiguous length-M rows;
     #   * S⁻¹ for m <= 3 is closed form (adjugate / determinant, PD checked by leading minors).
-    def _consts(self):
-        """Operators of the shared model on the packed layout, cached on the bytes of ``F, H, Q, R``."""
-        F, H, Q, R = self.F, self.H, self.Q, self.R
-        key = (F.shape, H.shape, F.tobytes(), H.tobytes(), Q.tobytes(), R.tobytes())
-        c = self._const_cache
-        if c is None or c[0] != key:
-            n, m = self.dim_x, self.dim_z
-            up, lo = self._iu_ju, self._ju_iu
-            off = (up != lo)[None, :]
+    def _set_model(self, F, H, Q, R) -> None:
+        """Store the validated model read-only and precompute its operators on the packed layout.
 
-            def fold(A):  # A (r, n²) acting on vec(P) -> (r, n(n+1)/2) acting on the packed P
-                return np.ascontiguousarray(A[:, up] + np.where(off, A[:, lo], 0.0))
+        ``F, H, Q, R`` are read-only (an in-place edit would bypass the operators); assigning one
+        (``bkf.Q = ...``) validates it and comes back here.
+        """
+        for A in (F, H, Q, R):
+            A.flags.writeable = False
+        self._F, self._H, self._Q, self._R = F, H, Q, R
+        n, m = self.dim_x, self.dim_z
+        up, lo = self._iu_ju, self._ju_iu
+        off = (up != lo)[None, :]
 
-            FF = np.einsum("ik,jl->ijkl", F, F).reshape(n * n, n * n)          # vec(F P Fᵀ) = FF vec(P)
-            IH = np.einsum("ik,jl->ijkl", np.eye(n), H).reshape(n * m, n * n)  # vec(P Hᵀ)
-            HH = np.einsum("ik,jl->ijkl", H, H).reshape(m * m, n * n)          # vec(H P Hᵀ)
-            G = np.vstack([IH, HH])                  # vec(P) -> [vec(P Hᵀ); vec(H P Hᵀ)], component-major
-            # H a selection matrix: every row of G picks one entry of P, a gather of packed rows
-            take = None
-            if np.array_equal(np.count_nonzero(G, axis=1), np.ones(len(G))) and (G.max(axis=1) == 1).all():
-                take = self._mirror[np.argmax(G, axis=1)]
-            cols = np.argmax(H, axis=1)
-            if not np.array_equal(H, np.eye(n)[cols]):
-                cols = None
-            c = self._const_cache = (
-                key,
-                fold(FF[up]),                                      # (n(n+1)/2)² : packed F P Fᵀ
-                Q.ravel()[up][:, None].copy(),
-                take,
-                fold(G),
-                R.reshape(m * m, 1).copy(),
-                cols,
-            )
-        return c[1:]
+        def fold(A):  # A (r, n²) acting on vec(P) -> (r, n(n+1)/2) acting on the packed P
+            return np.ascontiguousarray(A[:, up] + np.where(off, A[:, lo], 0.0))
+
+        FF = np.einsum("ik,jl->ijkl", F, F).reshape(n * n, n * n)          # vec(F P Fᵀ) = FF vec(P)
+        IH = np.einsum("ik,jl->ijkl", np.eye(n), H).reshape(n * m, n * n)  # vec(P Hᵀ)
+        HH = np.einsum("ik,jl->ijkl", H, H).reshape(m * m, n * n)          # vec(H P Hᵀ)
+        G = np.vstack([IH, HH])                  # vec(P) -> [vec(P Hᵀ); vec(H P Hᵀ)], component-major
+        # H a selection matrix: every row of G picks one entry of P, a gather of packed rows
+        take = None
+        if np.array_equal(np.count_nonzero(G, axis=1), np.ones(len(G))) and (G.max(axis=1) == 1).all():
+            take = self._mirror[np.argmax(G, axis=1)]
+        cols = np.argmax(H, axis=1)
+        if not np.array_equal(H, np.eye(n)[cols]):
+            cols = None
+        self._FFp = fold(FF[up])                           # (n(n+1)/2)² : packed F P Fᵀ
+        self._Qu = Q.ravel()[up][:, None].copy()           # packed Q, a column
+        self._take = take                                  # packed rows of [P Hᵀ; H P Hᵀ], or None
+        self._G = fold(G)                                  # ... else this operator on the packed P
+        self._Rcol = R.reshape(m * m, 1).copy()
+        self._cols = cols                                  # H x = x[cols] if H selects, else None
+        self._state_changed()
+
+    F = _model_property("F", "State transition, shape ``(n, n)``.")
+    H = _model_property("H", "Measurement matrix, shape ``(m, n)``.")
+    Q = _model_property("Q", "Process noise covariance, shape ``(n, n)``.")
+    R = _model_property("R", "Measurement noise covariance, shape ``(m, m)``.")
 
     def _hph(self):
-        """Component-major ``P Hᵀ (n, m, M)`` and ``S = H P Hᵀ + R (m, m, M)`` (exactly symmetric)."""
-        M, n, m = self.M, self.dim_x, self.dim_z
-        _, _, take, G, Rcol, _ = self._consts()
-        if take is not None:
-            Y = self._Pu.take(take, axis=0)
-        else:
-            Y = _gemm_over_columns(G, self._Pu)
-        S = Y[n * m:]
-        S += Rcol
-        S = S.reshape(m, m, M)
-        if take is None:
-            for i in range(m):
-                for j in range(i + 1, m):
-                    S[j, i] = S[i, j]
-        return Y[:n * m].reshape(n, m, M), S
+        """Component-major ``P Hᵀ (n, m, M)`` and ``S = H P Hᵀ + R (m, m, M)`` (exactly symmetric).
+
+        Cached until the state changes (:meth:`_state_changed`): the tracker's gating
+        (:meth:`predicted_measurements`) and the :meth:`update` that follows share one build. The
+        arrays are shared, so callers must not write into them.
+        """
+        c = self._hph_cache
+        if c is None:
+            M, n, m = self.M, self.dim_x, self.dim_z
+            take = self._take
+            if take is not None:
+                Y = self._Pu.take(take, axis=0)
+            else:
+                Y = _gemm_over_columns(self._G, self._Pu)
+            S = Y[n * m:]
+            S += self._Rcol
+            S = S.reshape(m, m, M)
+            if take is None:
+                for i in range(m):
+                    for j in range(i + 1, m):
+                        S[j, i] = S[i, j]
+            c = self._hph_cache = (Y[:n * m].reshape(n, m, M), S)
+        return c
 
     def predict(self) -> None:
         r"""Time update of every track: :math:`x_i \leftarrow F x_i`, :math:`P_i \leftarrow F P_i F^\top + Q`.
@@ -773,16 +825,16 @@ class BatchKalmanFilter:
         One GEMM gives the (packed) upper triangle of every :math:`F P_i F^\top`, so ``P`` stays
         exactly symmetric.
         """
-        FFp, Qu = self._consts()[:2]
-        self._xc = _gemm_over_columns(self.F, self._xc)
+        FFp = self._FFp
+        self._xc = _gemm_over_columns(self._F, self._xc)
         Pu, spare = self._Pu, self._Pu_spare
         if spare is None or spare.shape != Pu.shape or Pu.shape[1] * FFp.size > _GEMM_SINGLE_THREAD_WORK:
             spare = _gemm_over_columns(FFp, Pu)
         else:
             np.matmul(FFp, Pu, out=spare)
-        spare += Qu
+        spare += self._Qu
         self._Pu, self._Pu_spare = spare, Pu
-        self._x_cache = self._P_cache = None
+        self._state_changed()
 
     def predicted_measurements(self):
         """Predicted measurements and innovation covariances of all tracks, for gating.
@@ -795,10 +847,11 @@ class BatchKalmanFilter:
             :math:`H P_i H^\\top + R`.
         """
         M, m = self.M, self.dim_z
-        cols = self._consts()[5]
+        cols = self._cols
         _, S = self._hph()
-        z = self._xc[cols] if cols is not None else self.H @ self._xc
-        return np.ascontiguousarray(z.T), np.ascontiguousarray(S.reshape(m * m, M).T).reshape(M, m, m)
+        z = self._xc[cols] if cols is not None else self._H @ self._xc
+        # a copy, always (for M = 1 the transpose is already contiguous): S stays cached for update
+        return np.ascontiguousarray(z.T), S.reshape(m * m, M).T.copy().reshape(M, m, m)
 
     def update(self, Z, mask=None) -> None:
         r"""Joseph-form measurement update of the tracks with ``mask[i]`` True.
@@ -832,10 +885,10 @@ class BatchKalmanFilter:
                 raise ValueError(f"mask must be a bool array of shape ({M},), got {sel.dtype} {sel.shape}")
             if sel.all():
                 sel = None
-        cols = self._consts()[5]
+        cols = self._cols
         PHt, S = self._hph()                                               # (n, m, M), (m, m, M)
         xc = self._xc
-        y = Z.T - (xc[cols] if cols is not None else self.H @ xc)          # (m, M), NaN if unmeasured
+        y = Z.T - (xc[cols] if cols is not None else self._H @ xc)         # (m, M), NaN if unmeasured
         if sel is not None:
             y = np.where(sel, y, 0.0)
         if np.isnan(y).any():  # Z is finite or NaN (as_array), x finite: a NaN in a measured row
@@ -875,7 +928,7 @@ class BatchKalmanFilter:
         ll *= -0.5
         if sel is not None:
             ll[~sel] = 0.0
-        self._x_cache = self._P_cache = None
+        self._state_changed()
         self._reset_last()
         self._yc, self._sel, self._Sc, self.log_likelihood = y, sel, S, ll
 

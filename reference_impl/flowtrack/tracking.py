@@ -59,10 +59,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import as_array, nonnegative, positive, positive_int
+from ._validation import as_array, cholesky, nonnegative, positive, positive_int, probability, spatial_dim
 from .association import (
     _assign_unchecked,
-    _cholesky,
     _greedy_unchecked,
     _mahalanobis_from_cholesky,
     chi2_gate,
@@ -81,13 +80,6 @@ __all__ = [
 ]
 
 STATUSES = ("tentative", "confirmed", "coasting")
-
-
-def _probability(value, name: str) -> float:
-    p = positive(value, name)
-    if p >= 1.0:
-        raise ValueError(f"{name} must satisfy 0 < {name} < 1, got {p}")
-    return p
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -187,7 +179,7 @@ class GNNAssociator:
     """
 
     def __init__(self, gate_prob: float = 0.99, log_det: bool = True):
-        self.gate_prob = _probability(gate_prob, "gate_prob")
+        self.gate_prob = probability(gate_prob, "gate_prob")
         self.log_det = bool(log_det)
         self._gates: dict[int, float] = {}
 
@@ -207,7 +199,7 @@ class GNNAssociator:
         gate = self.gate(detections.shape[1])
         if M == 0 or N == 0:
             return self.assigner(np.zeros((M, N)), gate)
-        L = _cholesky(S, "S")
+        L = cholesky(S, "S")
         d2 = _mahalanobis_from_cholesky(z_pred, L, detections)
         if not self.log_det:
             return self.assigner(d2, gate)
@@ -386,13 +378,11 @@ class MultiObjectTracker:
     ):
         self.dt = positive(dt, "dt")
         self.q = nonnegative(q, "q")
-        self.dim = positive_int(dim, "dim")
-        if self.dim > 3:
-            raise ValueError(f"dim must be 1, 2 or 3, got {self.dim}")
+        self.dim = spatial_dim(dim, "dim")
         F, H, Q, R = constant_velocity_model(self.dt, self.q, r, self.dim)
         self.min_hits = positive_int(min_hits, "min_hits")
         self.max_misses = positive_int(max_misses, "max_misses", minimum=0)
-        self.gate_prob = _probability(gate_prob, "gate_prob")
+        self.gate_prob = probability(gate_prob, "gate_prob")
         sr2 = float(np.mean(np.diag(R)))
         velocity_var = (100.0 * sr2 / self.dt**2) if velocity_var is None else velocity_var
         flow_velocity_var = (sr2 / self.dt**2) if flow_velocity_var is None else flow_velocity_var
