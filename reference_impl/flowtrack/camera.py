@@ -94,10 +94,22 @@ class PinholeCamera:
         return cls(K[0, 0], K[1, 1], K[0, 2], K[1, 2], width, height)
 
 
-def _check_cam(cam) -> PinholeCamera:
+def _check_cam(cam, name: str = "cam") -> PinholeCamera:
     if not isinstance(cam, PinholeCamera):
-        raise TypeError(f"cam must be a PinholeCamera, got {type(cam).__name__}")
+        raise TypeError(f"{name} must be a PinholeCamera, got {type(cam).__name__}")
     return cam
+
+
+def _backproject_pixels(u, v, Z, cam: PinholeCamera) -> np.ndarray:
+    """``Z · ((u - cx)/fx, (v - cy)/fy, 1)`` at column coordinates ``u`` and row coordinates ``v``.
+
+    ``u``, ``v`` and ``Z`` broadcast against each other; the result has their shape + (3,).
+    """
+    out = np.empty((*np.broadcast_shapes(np.shape(u), np.shape(v), np.shape(Z)), 3))
+    out[..., 0] = (u - cam.cx) / cam.fx * Z
+    out[..., 1] = (v - cam.cy) / cam.fy * Z
+    out[..., 2] = Z
+    return out
 
 
 def _points(X, name: str = "X") -> np.ndarray:
@@ -202,11 +214,7 @@ def backproject(depth, cam: PinholeCamera, depth_scale: float = 1.0) -> np.ndarr
         raise ValueError("depth must be >= 0 (0 or NaN marks an invalid pixel)")
     H, W = Z.shape
     v, u = np.mgrid[0:H, 0:W].astype(np.float64)
-    out = np.empty((H, W, 3))
-    out[..., 0] = (u - cam.cx) / cam.fx * Z
-    out[..., 1] = (v - cam.cy) / cam.fy * Z
-    out[..., 2] = Z
-    return out
+    return _backproject_pixels(u, v, Z, cam)
 
 
 def optical_flow_from_scene_flow(X, v, dt: float, cam: PinholeCamera) -> np.ndarray:
@@ -295,5 +303,5 @@ def scene_flow_from_optical_flow(depth_t, depth_t1, flow_uv, dt: float, cam: Pin
     y1 = v + flow[..., 1]
     d1n = np.where(d1 > 0, d1, np.nan)
     Z1 = _bilinear(d1n, x1.ravel(), y1.ravel()).reshape(H, W)
-    X1 = np.stack([(x1 - cam.cx) / cam.fx * Z1, (y1 - cam.cy) / cam.fy * Z1, Z1], axis=-1)
+    X1 = _backproject_pixels(x1, y1, Z1, cam)
     return (X1 - X0) / dt

@@ -36,6 +36,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import eigsh
 from scipy.spatial import cKDTree
 
+from ._graph import as_labels, knn_edges, laplacian
 from ._validation import as_array, nonnegative, positive, positive_int
 
 __all__ = ["cluster_motion", "drop_small_clusters", "motion_affinity_graph", "tracks_from_clusters"]
@@ -94,12 +95,7 @@ def _graph(P: np.ndarray, V: np.ndarray, radius: float, sigma_v: float, k: int) 
     n = P.shape[0]
     if n < 2:
         return sp.csr_matrix((n, n))
-    kk = min(k + 1, n)
-    _dist, idx = cKDTree(P).query(P, k=kk, distance_upper_bound=radius)
-    rows = np.repeat(np.arange(n), kk)
-    cols = idx.ravel()
-    ok = (cols < n) & (cols != rows)
-    rows, cols = rows[ok], cols[ok]
+    rows, cols, _ = knn_edges(P, k, radius)
     w = np.exp(-np.sum((V[rows] - V[cols]) ** 2, axis=1) / sigma_v**2)
     W = sp.csr_matrix((w, (rows, cols)), shape=(n, n))
     return W.maximum(W.T).tocsr()
@@ -108,17 +104,14 @@ def _graph(P: np.ndarray, V: np.ndarray, radius: float, sigma_v: float, k: int) 
 def _smallest_eigs(W: sp.csr_matrix, m: int) -> tuple[np.ndarray, np.ndarray]:
     """The ``m`` smallest eigenpairs of L_sym = I - D^{-1/2} W D^{-1/2} (ascending)."""
     n = W.shape[0]
-    d = np.asarray(W.sum(axis=1)).ravel()
-    dinv = 1.0 / np.sqrt(np.maximum(d, 1e-300))
-    A = sp.diags(dinv) @ W @ sp.diags(dinv)
+    L, v0 = laplacian(W, normed=True, return_diag=True)  # v0 = sqrt(degrees): L_sym v0 = 0
     m = min(m, n)
     if n <= 150 or m >= n - 1:
-        lam, U = np.linalg.eigh(np.eye(n) - A.toarray())
+        lam, U = np.linalg.eigh(L.toarray())
         return np.maximum(lam[:m], 0.0), U[:, :m]
     # shift-invert Lanczos about a small negative shift: L_sym + 1e-3 I is positive definite, and
     # the wanted (smallest) eigenvalues become the largest of its inverse -> fast convergence
-    L = (sp.eye(n) - A).tocsc()
-    v0 = np.sqrt(np.maximum(d, 1e-300))  # the exact eigenvector of eigenvalue 0 of L_sym
+    L = L.tocsc()
     lam, U = eigsh(L, k=m, sigma=-1e-3, which="LM", v0=v0 / np.linalg.norm(v0), tol=1e-10)
     order = np.argsort(lam)
     return np.maximum(lam[order], 0.0), U[:, order]
@@ -306,17 +299,11 @@ def drop_small_clusters(labels, min_size: int) -> np.ndarray:
     >>> drop_small_clusters([0, 0, 0, 1, 2, 2, -1], 2)
     array([ 0,  0,  0, -1,  1,  1, -1])
     """
-    lab = np.asarray(labels)
-    if lab.ndim != 1 or not np.issubdtype(lab.dtype, np.integer):
-        raise ValueError(f"labels must be a 1-D integer array, got shape {lab.shape} dtype {lab.dtype}")
+    lab = as_labels(labels, "labels")
     min_size = positive_int(min_size, "min_size")
-    out = np.full(lab.shape, -1, dtype=np.int64)
     ids, counts = np.unique(lab[lab >= 0], return_counts=True)
-    keep = ids[counts >= min_size]
-    keep = keep[np.argsort(-counts[counts >= min_size], kind="stable")]
-    for new, old in enumerate(keep):
-        out[lab == old] = new
-    return out
+    lab[np.isin(lab, ids[counts < min_size])] = -1
+    return _relabel_by_size(lab)
 
 
 def tracks_from_clusters(points, flow, labels) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -340,13 +327,7 @@ def tracks_from_clusters(points, flow, labels) -> list[tuple[np.ndarray, np.ndar
     [(array([1., 0., 0.]), array([2., 0., 0.]))]
     """
     P, V = _check_points_flow(points, flow)
-    lab = np.asarray(labels)
-    if lab.shape != (P.shape[0],):
-        raise ValueError(f"labels must have shape ({P.shape[0]},), got {lab.shape}")
-    if not np.issubdtype(lab.dtype, np.integer):
-        raise TypeError(f"labels must be integers, got dtype {lab.dtype}")
-    if (lab < -1).any():
-        raise ValueError("labels must be >= -1 (-1 marks static points)")
+    lab = as_labels(labels, "labels", P.shape[0], type_error=True, min_label=-1)
     out = []
     for c in np.unique(lab[lab >= 0]):
         m = lab == c

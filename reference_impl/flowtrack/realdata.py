@@ -26,8 +26,9 @@ import numbers
 
 import numpy as np
 
+from ._graph import apply_transform
 from ._validation import _scalar, nonnegative, positive, positive_int
-from .camera import PinholeCamera, backproject
+from .camera import PinholeCamera, _backproject_pixels
 
 __all__ = [
     "FRONT_WHEEL_PIXELS",
@@ -36,6 +37,7 @@ __all__ = [
     "motorcycle_cloud",
     "motorcycle_depth",
     "motorcycle_flow_case",
+    "track_tud_campus",
 ]
 
 #: Calibration of the down-sampled pair, from the docstring of ``skimage.data.stereo_motorcycle``.
@@ -65,7 +67,8 @@ def motorcycle_camera() -> PinholeCamera:
 
 
 @functools.lru_cache(maxsize=1)
-def _load_cached():
+def _load():
+    """The left image and its disparity, loaded once; read-only (callers copy what they hand out)."""
     from skimage import data
 
     left, _right, disp = data.stereo_motorcycle()
@@ -76,9 +79,12 @@ def _load_cached():
     return left, disp
 
 
-def _load():
-    left, disp = _load_cached()
-    return left.copy(), disp.copy()
+def _depth(disp: np.ndarray) -> np.ndarray:
+    c = MOTORCYCLE_CALIBRATION
+    ok = np.isfinite(disp) & (disp + c["doffs"] > 0)
+    depth = np.zeros(disp.shape)
+    depth[ok] = c["baseline_mm"] * c["f"] / (disp[ok] + c["doffs"]) / 1000.0
+    return depth
 
 
 def motorcycle_depth() -> tuple[np.ndarray, np.ndarray]:
@@ -92,11 +98,7 @@ def motorcycle_depth() -> tuple[np.ndarray, np.ndarray]:
         The left image.
     """
     left, disp = _load()
-    c = MOTORCYCLE_CALIBRATION
-    ok = np.isfinite(disp) & (disp + c["doffs"] > 0)
-    depth = np.zeros(disp.shape)
-    depth[ok] = c["baseline_mm"] * c["f"] / (disp[ok] + c["doffs"]) / 1000.0
-    return depth, left
+    return _depth(disp), left.copy()
 
 
 def motorcycle_cloud(step: int = 4, return_pixels: bool = False):
@@ -125,14 +127,15 @@ def motorcycle_cloud(step: int = 4, return_pixels: bool = False):
     (3, True, True)
     """
     step = positive_int(step, "step")
-    depth, rgb = motorcycle_depth()
-    sub = np.zeros(depth.shape, dtype=bool)
-    sub[::step, ::step] = True
-    valid = sub & (depth > 0)
-    X = backproject(depth, motorcycle_camera())[valid]
-    colors = rgb[valid].astype(np.float64) / 255.0
+    left, disp = _load()
+    depth = _depth(disp[::step, ::step])  # every step-th row and column, from pixel (0, 0)
+    valid = depth > 0
+    rows = np.arange(0, disp.shape[0], step, dtype=np.float64)
+    cols = np.arange(0, disp.shape[1], step, dtype=np.float64)
+    X = _backproject_pixels(cols, rows[:, None], depth, motorcycle_camera())[valid]
+    colors = left[::step, ::step][valid].astype(np.float64) / 255.0
     if return_pixels:
-        return X, colors, np.argwhere(valid)
+        return X, colors, np.argwhere(valid) * step
     return X, colors
 
 
@@ -141,10 +144,6 @@ def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     a = axis / np.linalg.norm(axis)
     K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
     return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
-
-
-def _apply(T: np.ndarray, X: np.ndarray) -> np.ndarray:
-    return X @ T[:3, :3].T + T[:3, 3]
 
 
 def motorcycle_flow_case(
@@ -237,8 +236,8 @@ def motorcycle_flow_case(
         Tp[:3, :3] = Rp
         Tp[:3, 3] = pc - Rp @ pc
 
-    X1 = _apply(Tg, X)
-    X1[part] = _apply(Tg, _apply(Tp, X[part]))
+    X1 = apply_transform(Tg, X)
+    X1[part] = apply_transform(Tg, apply_transform(Tp, X[part]))
     flow = (X1 - X) / dt
 
     n = X.shape[0]

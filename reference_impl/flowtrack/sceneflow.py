@@ -42,6 +42,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
+from ._graph import apply_transform, as_labels, block_pcg, knn_edges, laplacian
 from ._validation import as_array, nonnegative, positive, positive_int
 from .variational import variational_scene_flow
 
@@ -125,24 +126,15 @@ def knn_graph(points, k: int = 8, sigma=None) -> sp.csr_matrix:
         raise ValueError(f"k must be < N (number of points in points, shape {X.shape}), got k={k}")
     if sigma is not None:
         sigma = positive(sigma, "sigma")
-    dist, idx = cKDTree(X).query(X, k=k + 1, workers=-1)
-    dist = np.atleast_2d(dist).reshape(n, k + 1)
-    idx = np.atleast_2d(idx).reshape(n, k + 1)
-    # Drop each point itself. With duplicated points the self index need not come first (ties at
-    # distance 0); where it is absent from the k+1 results drop the farthest one instead.
-    not_self = idx != np.arange(n)[:, None]
-    no_self_found = not_self.all(axis=1)
-    not_self[no_self_found, -1] = False
-    dist = dist[not_self].reshape(n, k)
-    idx = idx[not_self].reshape(n, k)
+    # k edges per point, never to itself (also with duplicated points)
+    rows, cols, dist = knn_edges(X, k)
     if sigma is None:
         sigma = float(np.median(dist))
         if sigma <= 0.0:
             pos = dist[dist > 0]
             sigma = float(pos.min()) if pos.size else 1.0
     w = np.exp(-((dist / sigma) ** 2))
-    rows = np.repeat(np.arange(n), k)
-    W = sp.csr_matrix((w.ravel(), (rows, idx.ravel())), shape=(n, n))
+    W = sp.csr_matrix((w, (rows, cols)), shape=(n, n))
     W = W.maximum(W.T).tocsr()  # union of the directed kNN edges; self-pairs were dropped above
     W.eliminate_zeros()  # weights that underflowed to 0
     W.sort_indices()
@@ -201,54 +193,12 @@ def graph_laplacian(W) -> sp.csr_matrix:
     array([[ 2., -2.],
            [-2.,  2.]])
     """
-    return _laplacian(_as_affinity(W, "W"))
-
-
-def _laplacian(W: sp.csr_matrix) -> sp.csr_matrix:
-    L = (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
-    L.sort_indices()
-    return L
+    return laplacian(_as_affinity(W, "W"))
 
 
 # ----------------------------------------------------------------------------------------------
 # graph scene flow
 # ----------------------------------------------------------------------------------------------
-def _block_pcg(A: sp.csr_matrix, B: np.ndarray, rtol: float, maxiter: int) -> tuple[np.ndarray, int, bool]:
-    """Jacobi-preconditioned CG run on the columns of ``B`` at once (independent step lengths).
-
-    Stops when every column's *true* residual satisfies ``||b - A x|| <= rtol ||b||`` (the
-    recursively updated residual is re-checked against the true one, restarting if it drifted).
-    """
-    dinv = 1.0 / A.diagonal()
-    X = np.zeros_like(B)
-    bnorm = np.linalg.norm(B, axis=0)
-    target = rtol * bnorm
-    it = 0
-    for _restart in range(4):
-        R = B - A @ X
-        if (np.linalg.norm(R, axis=0) <= target).all():
-            return X, it, True
-        Z = R * dinv[:, None]
-        P = Z.copy()
-        rz = np.einsum("ij,ij->j", R, Z)
-        while it < maxiter:
-            Q = A @ P
-            pq = np.einsum("ij,ij->j", P, Q)
-            alpha = np.divide(rz, pq, out=np.zeros_like(rz), where=pq > 0)
-            X += alpha * P
-            R -= alpha * Q
-            it += 1
-            if (np.linalg.norm(R, axis=0) <= target).all():
-                break
-            Z = R * dinv[:, None]
-            rz_new = np.einsum("ij,ij->j", R, Z)
-            beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
-            P = Z + beta * P
-            rz = rz_new
-    R = B - A @ X
-    return X, it, bool((np.linalg.norm(R, axis=0) <= target).all())
-
-
 def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
     """Return ``solve(B)`` for ``A X = B``, SPD sparse A; a direct method factorises A once here.
 
@@ -270,7 +220,7 @@ def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
         # ||x - x*|| / ||x*|| <= cond(A) ||r|| / ||b||, so a residual of tol / kappa bounds the error
         # by tol; the floor keeps the target above what rounding lets the true residual reach.
         rtol = max(tol / kappa, 8.0 * np.finfo(float).eps * kappa)
-        X, _, ok = _block_pcg(A, B, rtol, maxiter=max(1000, 50 * int(np.sqrt(kappa)) + 100))
+        X, _, ok = block_pcg(A, B, rtol, maxiter=max(1000, 50 * int(np.sqrt(kappa)) + 100))
         if ok:
             return X
         warnings.warn(
@@ -287,7 +237,7 @@ def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
 
 def _graph_system(n: int, W: sp.csr_matrix, dt: float, lam: float) -> tuple[sp.csr_matrix, float]:
     """The matrix ``dt² I + lam L`` of graph scene flow and its Gershgorin condition bound."""
-    L = _laplacian(W)  # W was validated (given) or is symmetric by construction
+    L = laplacian(W)  # W was validated (given) or is symmetric by construction
     A = (lam * L + sp.diags(np.full(n, dt * dt))).tocsr()
     kappa = 1.0 + 2.0 * lam * float(L.diagonal().max()) / (dt * dt)
     return A, kappa
@@ -550,10 +500,6 @@ def _icp(X: np.ndarray, Z: np.ndarray, threshold: float, init: np.ndarray, metho
     return np.array(result.transformation, dtype=np.float64)
 
 
-def _apply(T: np.ndarray, X: np.ndarray) -> np.ndarray:
-    return X @ T[:3, :3].T + T[:3, 3]
-
-
 _METHODS = ("point_to_point", "point_to_plane")
 
 
@@ -606,7 +552,7 @@ def rigid_scene_flow(
         raise ValueError(f"method must be one of {_METHODS}, got {method!r}")
     max_iter = positive_int(max_iter, "max_iter")
     T = _icp(X, Z, threshold, init, method, max_iter)
-    return (_apply(T, X) - X) / dt, T
+    return (apply_transform(T, X) - X) / dt, T
 
 
 def rigid_flow_per_cluster(
@@ -664,8 +610,8 @@ def rigid_flow_per_cluster(
     """
     X = as_array(points_t, "points_t", ("N", 3), min_rows=1)
     Z = as_array(points_t1, "points_t1", ("M", 3), min_rows=1)
-    lab = _as_labels(labels, "labels", X.shape[0])
-    lab1 = None if labels_t1 is None else _as_labels(labels_t1, "labels_t1", Z.shape[0])
+    lab = as_labels(labels, "labels", X.shape[0], integral_floats=True)
+    lab1 = None if labels_t1 is None else as_labels(labels_t1, "labels_t1", Z.shape[0], integral_floats=True)
     dt = positive(dt, "dt")
     threshold = positive(threshold, "threshold")
     if method not in _METHODS:
@@ -686,20 +632,9 @@ def rigid_flow_per_cluster(
         T[:3, 3] = (Zs[nn] - Xs).mean(axis=0)
         if len(Xs) >= 3 and len(Zs) >= 3:
             T = _icp(Xs, Zs, threshold, T, method, max_iter)
-        flow[sel] = (_apply(T, Xs) - Xs) / dt
+        flow[sel] = (apply_transform(T, Xs) - Xs) / dt
         transforms[int(ell)] = T
     return (flow, transforms) if return_transforms else flow
-
-
-def _as_labels(labels, name: str, n: int) -> np.ndarray:
-    lab = np.asarray(labels)
-    if lab.ndim != 1 or lab.shape[0] != n:
-        raise ValueError(f"{name} must have shape ({n},), got {lab.shape}")
-    if lab.size and not np.issubdtype(lab.dtype, np.integer):
-        integral = np.issubdtype(lab.dtype, np.floating) and np.all(np.isfinite(lab))
-        if not integral or np.any(lab != np.round(lab)):
-            raise ValueError(f"{name} must hold integer labels, got dtype {lab.dtype}")
-    return lab.astype(np.int64)
 
 
 # ----------------------------------------------------------------------------------------------

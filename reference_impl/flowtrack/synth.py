@@ -33,8 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._graph import apply_transform
 from ._validation import as_array, nonnegative, positive, positive_int
-from .camera import PinholeCamera, backproject, project
+from .camera import PinholeCamera, _check_cam, backproject, project
 
 __all__ = [
     "SCENARIOS",
@@ -377,17 +378,11 @@ def ray_directions(camera: PinholeCamera) -> np.ndarray:
     [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]]
     """
     cam = _check_camera(camera)
-    v, u = np.mgrid[0 : cam.height, 0 : cam.width].astype(np.float64)
-    d = np.empty((cam.height * cam.width, 3))
-    d[:, 0] = ((u - cam.cx) / cam.fx).ravel()
-    d[:, 1] = ((v - cam.cy) / cam.fy).ravel()
-    d[:, 2] = 1.0
-    return d
+    return backproject(np.ones((cam.height, cam.width)), cam).reshape(-1, 3)  # depth Z = 1
 
 
 def _check_camera(camera) -> PinholeCamera:
-    if not isinstance(camera, PinholeCamera):
-        raise TypeError(f"camera must be a PinholeCamera, got {type(camera).__name__}")
+    _check_cam(camera, "camera")
     if camera.width is None or camera.height is None:
         raise ValueError("camera must have width and height")
     return camera
@@ -432,11 +427,10 @@ def _roi(shape, pose: np.ndarray, cam: PinholeCamera) -> tuple[slice, slice] | N
     else:
         return None
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
-    C = corners @ pose[:3, :3].T + pose[:3, 3]
+    C = apply_transform(pose, corners)
     if (C[:, 2] <= 1e-9).any():
         return None
-    x = cam.fx * C[:, 0] / C[:, 2] + cam.cx
-    y = cam.fy * C[:, 1] / C[:, 2] + cam.cy
+    x, y = project(C, cam).T
     c0, c1 = int(np.floor(x.min())) - 1, int(np.ceil(x.max())) + 2
     r0, r1 = int(np.floor(y.min())) - 1, int(np.ceil(y.max())) + 2
     c0, r0 = max(c0, 0), max(r0, 0)
@@ -595,6 +589,7 @@ class Frame:
     gt_poses: dict
     visible: dict
     _camera: PinholeCamera = field(repr=False, default=None)
+    _gt_points: np.ndarray | None = field(repr=False, default=None)
 
     @property
     def valid(self) -> np.ndarray:
@@ -608,7 +603,9 @@ class Frame:
 
     @property
     def gt_points(self) -> np.ndarray:
-        """``(N, 3)`` noiseless surface points (back-projection of ``depth_gt``)."""
+        """``(N, 3)`` noiseless surface points (back-projection of ``depth_gt``; a fresh array)."""
+        if self._gt_points is not None:  # computed by make_scene
+            return self._gt_points.copy()
         return backproject(self.depth_gt, self._camera)[self.valid]
 
 
@@ -752,10 +749,6 @@ def _random_shape(rng: np.random.Generator, kind: str):
     return Cylinder(rng.uniform(0.035, 0.055), rng.uniform(0.04, 0.08))
 
 
-def _footprint(shape) -> float:
-    return shape.radius
-
-
 def _collides(tr: PlanarTrajectory, r: float, others, times) -> bool:
     P = tr.position(times)[:, :2]
     for tr2, r2 in others:
@@ -776,7 +769,7 @@ def _in_workspace(tr: PlanarTrajectory, r: float, times) -> bool:
 
 
 def _random_trajectory(rng, shape, duration, opts, others, times, static_discs) -> PlanarTrajectory:
-    r = _footprint(shape)
+    r = shape.radius
     lo_s, hi_s = opts["speed"]
     for _ in range(500):
         p0 = np.array([rng.uniform(*_X_RANGE), rng.uniform(*_Y_RANGE)])
@@ -798,6 +791,13 @@ def _random_trajectory(rng, shape, duration, opts, others, times, static_discs) 
         "could not place a non-colliding trajectory in the workspace; use fewer objects (n_objects) "
         "or a lower speed"
     )
+
+
+def _straight_trajectory(rng, p0, p1, duration, shape, opts) -> PlanarTrajectory:
+    """Straight path ``p0 -> p1`` resting on the table, random start angle and spin (scenarios)."""
+    theta0 = rng.uniform(-np.pi, np.pi)
+    omega = rng.uniform(-1, 1) * opts["max_angular_speed"]
+    return PlanarTrajectory(p0, p1, duration, shape.half_height, theta0, omega, 0.0)
 
 
 def _parse_options(options: dict) -> dict:
@@ -942,24 +942,8 @@ def make_scene(
         s1, s2 = objects[1], objects[2]
         y_near, y_far = 0.02 + s1.radius, 0.40 - s2.radius
         x1 = _X_RANGE[1] - max(s1.radius, s2.radius) - 0.01
-        trajectories[1] = PlanarTrajectory(
-            (-x1, y_near),
-            (x1, y_near),
-            duration,
-            s1.half_height,
-            rng.uniform(-np.pi, np.pi),
-            rng.uniform(-1, 1) * opts["max_angular_speed"],
-            0.0,
-        )
-        trajectories[2] = PlanarTrajectory(
-            (x1, y_far),
-            (-x1, y_far),
-            duration,
-            s2.half_height,
-            rng.uniform(-np.pi, np.pi),
-            rng.uniform(-1, 1) * opts["max_angular_speed"],
-            0.0,
-        )
+        trajectories[1] = _straight_trajectory(rng, (-x1, y_near), (x1, y_near), duration, s1, opts)
+        trajectories[2] = _straight_trajectory(rng, (x1, y_far), (-x1, y_far), duration, s2, opts)
         placed = [(trajectories[1], s1.radius), (trajectories[2], s2.radius)]
     elif scenario == "occlusion":
         # object 1 (small, low) slides behind a static tall box standing between it and the camera
@@ -970,15 +954,7 @@ def make_scene(
         static_bodies.append(Body(occ, T_cw @ T_wocc, 0, (110.0, 110.0, 110.0), 0.03 * tex))
         static_discs = [(PlanarTrajectory((0.0, 0.10), (0.0, 0.10), duration, 0.0), occ.radius)]
         x1 = 0.26
-        trajectories[1] = PlanarTrajectory(
-            (-x1, 0.36),
-            (x1, 0.36),
-            duration,
-            objects[1].half_height,
-            rng.uniform(-np.pi, np.pi),
-            rng.uniform(-1, 1) * opts["max_angular_speed"],
-            0.0,
-        )
+        trajectories[1] = _straight_trajectory(rng, (-x1, 0.36), (x1, 0.36), duration, objects[1], opts)
         placed = [(trajectories[1], objects[1].radius)]
     for k in objects:
         if k in trajectories:
@@ -994,10 +970,11 @@ def make_scene(
     static_rgb = _shade(static_rc, static_bodies, light_c).reshape(H, W, 3)
     n_static = len(static_bodies)
     frames = []
+    # object-to-camera poses at t_0 .. t_n (frame i moves from pose i to pose i + 1)
+    all_poses = [{k: T_cw @ trajectories[k].pose(i * dt) for k in objects} for i in range(n_frames + 1)]
     for i in range(n_frames):
-        t0, t1 = i * dt, (i + 1) * dt
-        poses = {k: T_cw @ trajectories[k].pose(t0) for k in objects}
-        poses_next = {k: T_cw @ trajectories[k].pose(t1) for k in objects}
+        t0 = i * dt
+        poses, poses_next = all_poses[i], all_poses[i + 1]
         moving = [
             Body(objects[k], poses[k], k, tuple(colors[k]), 0.02 if opts["texture"] else 0.0) for k in objects
         ]
@@ -1021,7 +998,7 @@ def make_scene(
             m = labels == k
             if m.any():
                 M = poses_next[k] @ np.linalg.inv(poses[k])
-                flow[m] = (X[m] @ M[:3, :3].T + M[:3, 3] - X[m]) / dt
+                flow[m] = (apply_transform(M, X[m]) - X[m]) / dt
         visible = {k: int(np.count_nonzero(rc.label == k)) for k in objects}
         frames.append(
             Frame(
@@ -1037,6 +1014,7 @@ def make_scene(
                 gt_poses=poses,
                 visible=visible,
                 _camera=cam,
+                _gt_points=X,
             )
         )
     return Scene(
