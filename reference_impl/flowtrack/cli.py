@@ -7,10 +7,18 @@ project's API document; this module only parses arguments and calls the library.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from pathlib import Path
 
 from . import __version__
+
+
+# Modules that add their own sub-commands: each has ``register(subparsers)`` which adds one or more
+# parsers and sets ``func`` (called with the parsed namespace, returns the exit code). Keep their
+# top-level imports light: ``flowtrack --help`` imports all of them.
+_SUBCOMMAND_MODULES: tuple[str, ...] = (
+)
 
 
 def _positive_int(text: str) -> int:
@@ -62,6 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=0, help="random seed of the synthetic scene")
     demo.add_argument("--no-progress", action="store_true", help="do not show progress bars")
     demo.set_defaults(func=_cmd_demo)
+    for module_name in _SUBCOMMAND_MODULES:
+        importlib.import_module(module_name).register(sub)
     return parser
 
 
