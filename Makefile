@@ -49,7 +49,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	@$(MAKE) --no-print-directory sysdeps APT_PACKAGES="$(APT_TEST)"
 	$(VENV)/bin/ruff check .
-	$(PY) -m pytest -n 2 --doctest-modules reference_impl tests
+	$(PY) -m pytest -n 2 --dist loadgroup --doctest-modules reference_impl tests
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

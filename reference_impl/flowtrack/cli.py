@@ -13,7 +13,6 @@ from pathlib import Path
 
 from . import __version__
 
-
 # Modules that add their own sub-commands: each has ``register(subparsers)`` which adds one or more
 # parsers and sets ``func`` (called with the parsed namespace, returns the exit code). Keep their
 # top-level imports light: ``flowtrack --help`` imports all of them.

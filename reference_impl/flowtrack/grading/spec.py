@@ -1,0 +1,157 @@
+"""What an exercise is, for the grader: trusted test definitions and trusted comparisons.
+
+An :class:`Exercise` names its notebook, the nbgrader ``grade_id`` of the answer cells whose code
+the sandboxed child executes, the modules the child may not import, and its :class:`GradedTest`\\ s.
+A test's ``build(rng)`` returns the :class:`Call`\\ s to make in the child and a scorer; the scorer
+receives one :class:`Outcome` per call (plain data only, converted by the grader) and returns the
+fraction of the points earned and a message. Expected values are computed here, by the trusted
+reference, and never sent to the child.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "Call",
+    "Exercise",
+    "GradedTest",
+    "Outcome",
+    "Scorer",
+    "as_float_array",
+    "compare_arrays",
+    "student_seed",
+]
+
+
+@dataclass(frozen=True)
+class Call:
+    """One call of a student function: ``function(*args, **kwargs)`` inside the child.
+
+    ``args``/``kwargs`` hold plain data or numpy arrays (sent to the child as nested lists and
+    rebuilt there as float64 arrays when ``arrays`` names them, see the sandbox).
+    """
+
+    function: str
+    args: tuple[Any, ...] = ()
+    kwargs: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What came back from one call: plain data only (never an object made by student code).
+
+    ``ok`` is False when the call raised, timed out, crashed the child, exceeded a limit or returned
+    something that is not plain data; ``error`` then says why.
+    """
+
+    ok: bool
+    value: Any = None
+    error: str = ""
+
+
+Scorer = Callable[[Sequence[Outcome]], tuple[float, str]]
+
+
+@dataclass(frozen=True)
+class GradedTest:
+    """A test: ``build(rng) -> (calls, scorer)``; ``scorer(outcomes) -> (fraction in [0, 1], message)``.
+
+    ``hidden`` tests are reported to students by name and score only. ``grade_id`` is the nbgrader id
+    of the notebook's test cell this test stands for (the notebook's own test cells are never run by
+    the grader: students can edit them).
+    """
+
+    name: str
+    grade_id: str
+    points: float
+    hidden: bool
+    build: Callable[[np.random.Generator], tuple[Sequence[Call], Scorer]]
+    timeout: float = 10.0
+
+
+@dataclass(frozen=True)
+class Exercise:
+    """One exercise notebook and its tests.
+
+    ``notebook`` is the path relative to ``exercises/``; ``answer_cells`` the grade_ids of the cells
+    (in notebook order) the child executes; ``blocked`` the modules the child cannot import
+    (e.g. ``"flowtrack.camera"``, ``"scipy.optimize"``); ``allowed`` the flowtrack modules the
+    exercise text says a student may use.
+    """
+
+    id: str
+    title: str
+    notebook: str
+    answer_cells: tuple[str, ...]
+    blocked: tuple[str, ...]
+    tests: tuple[GradedTest, ...]
+    allowed: tuple[str, ...] = ()
+
+    @property
+    def max_score(self) -> float:
+        return float(sum(t.points for t in self.tests))
+
+
+def student_seed(student: str, exercise: str, test: str) -> int:
+    """A stable 63-bit seed for one student's inputs of one test (sha256, not Python's hash)."""
+    digest = hashlib.sha256(f"{student}\0{exercise}\0{test}".encode()).digest()
+    return int.from_bytes(digest[:8], "little") >> 1
+
+
+def as_float_array(value: Any, shape: tuple[int | None, ...] | None = None) -> np.ndarray | None:
+    """Plain data -> float64 array, or None when it is not numeric or has the wrong shape.
+
+    Only ``int``, ``float``, ``bool`` and nested ``list``/``tuple`` of them are accepted (what the
+    grader's JSON decoding produces); ``None`` entries in ``shape`` match any length.
+    """
+    if not _plain_numeric(value):
+        return None
+    try:
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    if shape is not None:
+        if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+            return None
+    return arr
+
+
+def _plain_numeric(value: Any, depth: int = 0) -> bool:
+    if depth > 8:
+        return False
+    if type(value) in (int, float, bool):
+        return True
+    if type(value) in (list, tuple):
+        return all(_plain_numeric(v, depth + 1) for v in value)
+    return False
+
+
+def compare_arrays(
+    outcome: Outcome, expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9
+) -> tuple[bool, str]:
+    """Trusted comparison of one outcome with an expected array (shape must match exactly)."""
+    if not outcome.ok:
+        return False, outcome.error or "the call failed"
+    expected = np.asarray(expected, dtype=np.float64)
+    got = as_float_array(outcome.value, expected.shape)
+    if got is None:
+        got_any = as_float_array(outcome.value)
+        if got_any is None:
+            return False, "the result is not an array of numbers"
+        return False, f"expected an array of shape {expected.shape}, got shape {got_any.shape}"
+    if not np.all(np.isfinite(got) == np.isfinite(expected)):
+        return False, "NaN/inf where the expected value is finite (or the other way round)"
+    finite = np.isfinite(expected)
+    err = np.abs(got[finite] - expected[finite])
+    bound = atol + rtol * np.abs(expected[finite])
+    if np.all(err <= bound):
+        return True, "ok"
+    worst = float(np.max(err - bound)) if err.size else math.nan
+    return False, f"values differ (worst excess over tolerance {worst:.3g}; rtol={rtol:g}, atol={atol:g})"
