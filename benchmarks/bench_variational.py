@@ -164,7 +164,16 @@ def main() -> int:
     ]
     for a, ratio, diff in verdicts:
         ok = "met" if ratio >= 50 and diff <= 1e-6 else "NOT met"
-        lines.append(f"- alpha = {a:g}: speed-up {ratio:.1f}x, max |Δv| {diff:.2e} → {ok}")
+        lines.append(
+            f"- alpha = {a:g} (lam = {a * dt**2:g} at dt = {dt}): speed-up {ratio:.1f}x, "
+            f"max |Δv| {diff:.2e} → {ok}"
+        )
+    lines += [
+        "",
+        "With weak smoothing (alpha = 1, a smoothing length of one pixel) the system is nearly",
+        "diagonal and CG needs few iterations, so the speed-up of any direct method is smallest",
+        "there; it grows with alpha (see the verdicts above for where the 50x bar is met).",
+    ]
     text = "\n".join(lines) + "\n"
     publish("variational", text, args.quick)
     return 0

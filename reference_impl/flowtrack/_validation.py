@@ -42,6 +42,7 @@ def as_array(
     allow_nan: bool = False,
     min_rows: int = 0,
     dtype=np.float64,
+    copy: bool = True,
 ) -> np.ndarray:
     """Convert ``value`` to a float64 array and check its shape and values.
 
@@ -59,6 +60,9 @@ def as_array(
         inf is still rejected.
     min_rows : int
         Minimum length of the first axis (e.g. 1 for "non-empty cloud").
+    copy : bool
+        Always return a new array (default). ``False`` returns ``value`` itself when it already is
+        an array of ``dtype``; callers that pass ``False`` must never write into the result.
 
     Raises
     ------
@@ -81,7 +85,7 @@ def as_array(
         raise TypeError(f"{name} must be a numeric array, got dtype {arr.dtype}")
     if np.iscomplexobj(arr):
         raise TypeError(f"{name} must be real, got complex dtype {arr.dtype}")
-    arr = np.array(arr, dtype=dtype, copy=True)
+    arr = np.array(arr, dtype=dtype, copy=True) if copy else np.asarray(arr, dtype=dtype)
     if shape is not None:
         expected = _shape_str(shape)
         if arr.ndim != len(shape):

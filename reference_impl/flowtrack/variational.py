@@ -504,8 +504,11 @@ def _prepare(a, b, dt, lam, mask, method, tol, max_iter, names, shape):
         raise ValueError(f"tol must be in (0, 1), got {tol}")
     if max_iter is not None:
         max_iter = positive_int(max_iter, "max_iter")
+    diff = b - a  # NaN where either is NaN (inf was rejected); a new array, a and b stay untouched
+    if mask is None and not np.isnan(diff).any():  # the common case: full data term, no copies
+        diff *= 1.0 / dt
+        return diff, np.ones((H, W)), dt, lam, method, tol, max_iter
     user_mask = _check_mask(mask, H, W)
-    diff = b - a  # NaN where either is NaN (inf was rejected)
     finite = ~np.isnan(diff) if diff.ndim == 2 else ~np.isnan(diff).any(axis=-1)
     m = user_mask * finite
     if method == "dct" and not (m == 1.0).all():
@@ -571,8 +574,8 @@ def solve_component(a, b, dt, lam, mask=None, method="dct", tol=1e-10, max_iter=
     >>> np.allclose(v1, 2.0)
     True
     """
-    a = as_array(a, "a", ("H", "W"), allow_nan=True)
-    b = as_array(b, "b", ("H", "W"), allow_nan=True)
+    a = as_array(a, "a", ("H", "W"), allow_nan=True, copy=False)
+    b = as_array(b, "b", ("H", "W"), allow_nan=True, copy=False)
     d, m, dt, lam, method, tol, max_iter = _prepare(
         a, b, dt, lam, mask, method, tol, max_iter, ("a", "b"), "(H, W)"
     )
@@ -674,8 +677,8 @@ def variational_scene_flow(
     >>> variational_scene_flow(X_t, X_t1, dt=0.1, lam=0.05, method="cg").shape
     (6, 7, 3)
     """
-    X_t = as_array(X_t, "X_t", ("H", "W", 3), allow_nan=True)
-    X_t1 = as_array(X_t1, "X_t1", ("H", "W", 3), allow_nan=True)
+    X_t = as_array(X_t, "X_t", ("H", "W", 3), allow_nan=True, copy=False)
+    X_t1 = as_array(X_t1, "X_t1", ("H", "W", 3), allow_nan=True, copy=False)
     regularizer = _check_choice(regularizer, "regularizer", REGULARIZERS)
     d, m, dt, lam, method, tol, max_iter = _prepare(
         X_t, X_t1, dt, lam, mask, method, tol, max_iter, ("X_t", "X_t1"), "(H, W, 3)"
@@ -722,8 +725,8 @@ def variational_energy(v, X_t, X_t1, dt, lam, mask=None, regularizer="quadratic"
     >>> variational_energy(v, X, X, dt=1.0, lam=2.0)   # data 1 + 2 * (two edges of length 1)
     5.0
     """
-    X_t = as_array(X_t, "X_t", ("H", "W", 3), allow_nan=True)
-    X_t1 = as_array(X_t1, "X_t1", ("H", "W", 3), allow_nan=True)
+    X_t = as_array(X_t, "X_t", ("H", "W", 3), allow_nan=True, copy=False)
+    X_t1 = as_array(X_t1, "X_t1", ("H", "W", 3), allow_nan=True, copy=False)
     regularizer = _check_choice(regularizer, "regularizer", REGULARIZERS)
     v = as_array(v, "v", X_t.shape)
     d, m, dt, lam, *_ = _prepare(X_t, X_t1, dt, lam, mask, "cg", 0.5, None, ("X_t", "X_t1"), "(H, W, 3)")
