@@ -1,0 +1,78 @@
+"""The C++ ports (Eigen, PCL) on the shared vectors: one test per language and problem.
+
+The CMake project is built once per session into ``cpp_java_matlab_ports/build/cpp`` (incremental,
+so a second run only checks time stamps). A missing compiler or library fails these tests with the
+Debian packages to install; they are never skipped. The last test proves the harnesses can fail.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from flowtrack.ports import lang_cpp
+from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
+from ports_helpers import failing_cases, perturbed_vectors, vector_case_ids
+
+pytestmark = pytest.mark.xdist_group("ports-cpp")
+
+BUILD_DIR = PORTS_DIR / "build"
+PROBLEMS = {
+    "cpp-eigen": [
+        "kalman_cv2d",
+        "white_noise_q",
+        "projection_jacobian",
+        "mahalanobis_assignment",
+        "graph_scene_flow",
+        "variational_scene_flow",
+    ],
+    "cpp-pcl": ["rigid_icp"],
+}
+
+
+@pytest.fixture(scope="module")
+def cpp_build():
+    try:
+        return lang_cpp.build(BUILD_DIR)
+    except ToolchainMissing as exc:
+        pytest.fail(f"C++ toolchain missing (the ports are never skipped): {exc}")
+
+
+@pytest.fixture(scope="module")
+def cpp_results(cpp_build):
+    results = []
+    for language in lang_cpp.LANGUAGES:
+        results += lang_cpp.run_harness(language, VECTORS_DIR, cpp_build)
+    return results
+
+
+@pytest.mark.parametrize(
+    ("language", "problem"), [(lang, prob) for lang, probs in PROBLEMS.items() for prob in probs]
+)
+def test_port_passes_every_vector_case(cpp_results, language, problem):
+    got = [r for r in cpp_results if r.language == language and r.problem == problem]
+    # every case of the file is run (a case added to the file is picked up without code changes)
+    assert [r.case_id for r in got] == vector_case_ids(problem)
+    failed = [f"{r.case_id}: {r.message} (max error {r.max_error:.3g})" for r in got if not r.passed]
+    assert not failed, "\n".join(failed)
+
+
+def test_unit_tests_pass(cpp_build):
+    results = lang_cpp.run_unit_tests(cpp_build)
+    assert {r.language for r in results} == set(lang_cpp.LANGUAGES)
+    failed = [f"{r.language} {r.case_id}: {r.message}" for r in results if not r.passed]
+    assert not failed, "\n".join(failed)
+
+
+def test_harnesses_report_exactly_the_perturbed_cases(cpp_build, tmp_path):
+    problems = [p for probs in PROBLEMS.values() for p in probs]
+    folder, spoilt = perturbed_vectors(tmp_path, problems)
+    results = []
+    for language in lang_cpp.LANGUAGES:
+        results += lang_cpp.run_harness(language, folder, cpp_build)
+    assert failing_cases(results, problems) == spoilt
+    assert len(results) == sum(len(vector_case_ids(p)) for p in problems)
+
+
+def test_missing_vector_file_is_an_error(cpp_build, tmp_path):
+    with pytest.raises(RuntimeError, match="missing vector file"):
+        lang_cpp.run_harness("cpp-pcl", tmp_path, cpp_build)
