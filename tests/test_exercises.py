@@ -1,0 +1,693 @@
+"""The ten exercise notebooks and their trusted test registry (issue 5, exercises).
+
+Every notebook is valid nbformat with valid nbgrader metadata that matches the registry; every
+solution scores full marks, every stub (nbgrader's own ClearSolutions) scores 0 and a typical wrong
+answer scores strictly in between - through the in-process runner (nbgrader compatibility) and
+through the sandbox the grader uses; answers that call the blocked reference score 0 in the
+sandbox. The expected values of exercise 9 (from the trusted tracker) are checked against an
+independent bookkeeping oracle written here.
+"""
+
+from __future__ import annotations
+
+import ast
+import copy
+import dataclasses
+import itertools
+import json
+import re
+from pathlib import Path
+
+import nbformat
+import numpy as np
+import pytest
+
+from flowtrack.grading.exercises import EXERCISES, _ex09_expected, get_exercise, plain_data, run_in_process
+from flowtrack.grading.spec import Outcome, student_seed
+
+ROOT = Path(__file__).resolve().parents[1]
+EXDIR = ROOT / "exercises"
+IDS = [ex.id for ex in EXERCISES]
+EXPECTED_FILES = [
+    "ex01_projection_jacobian.ipynb",
+    "ex02_optical_flow.ipynb",
+    "ex03_gauss_seidel.ipynb",
+    "ex04_graph_scene_flow.ipynb",
+    "ex05_cv_model.ipynb",
+    "ex06_kalman_predict_update.ipynb",
+    "ex07_mahalanobis_gating.ipynb",
+    "ex08_hungarian.ipynb",
+    "ex09_track_management.ipynb",
+    "ex10_motion_clustering.ipynb",
+]
+
+
+# --------------------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------------------
+def _read(ex) -> nbformat.NotebookNode:
+    return nbformat.read(EXDIR / ex.notebook, as_version=4)
+
+
+def _nbg(cell) -> dict:
+    return cell.metadata.get("nbgrader", {})
+
+
+def _answer_sources(nb, ex) -> dict[str, str]:
+    src = {
+        _nbg(c).get("grade_id"): c.source
+        for c in nb.cells
+        if c.cell_type == "code" and _nbg(c).get("solution")
+    }
+    return {gid: src[gid] for gid in ex.answer_cells}
+
+
+def _stub_notebook(ex) -> nbformat.NotebookNode:
+    """The student version of the answer cells, made by nbgrader's own ClearSolutions."""
+    from nbgrader.preprocessors import ClearSolutions
+
+    nb, _ = ClearSolutions().preprocess(copy.deepcopy(_read(ex)), {})
+    return nb
+
+
+def _namespace(sources: dict[str, str]) -> dict:
+    ns: dict = {"__name__": "student"}
+    for src in sources.values():
+        exec(compile(src, "<answer cell>", "exec"), ns)
+    return ns
+
+
+def _score(results) -> float:
+    return sum(r[1] for r in results)
+
+
+def _replace_solution(source: str, body: str) -> str:
+    """Put ``body`` (unindented) between the solution markers of an answer cell."""
+    m = re.search(r"^( *)### BEGIN SOLUTION\n.*?^ *### END SOLUTION", source, flags=re.S | re.M)
+    assert m, "no solution region"
+    indent = m.group(1)
+    new = "\n".join(indent + line if line else line for line in body.strip("\n").splitlines())
+    return source[: m.start()] + new + source[m.end() :]
+
+
+# A typical wrong answer per exercise: {grade_id: new solution body}; the other cells stay correct.
+WRONG = {
+    "ex01_projection_jacobian": {  # sign of one term flipped
+        "projection_jacobian": """
+X = np.asarray(X, dtype=float)
+J = np.zeros((X.shape[0], 2, 3))
+J[:, 0, 0] = fx / X[:, 2]
+J[:, 0, 2] = fx * X[:, 0] / X[:, 2] ** 2
+J[:, 1, 1] = fy / X[:, 2]
+J[:, 1, 2] = -fy * X[:, 1] / X[:, 2] ** 2
+return J
+"""
+    },
+    "ex02_optical_flow": {  # forgets the time step
+        "optical_flow": """
+X = np.asarray(X, dtype=float)
+Z = X[:, 2]
+ux = fx * (V[:, 0] / Z - X[:, 0] * V[:, 2] / Z**2)
+uy = fy * (V[:, 1] / Z - X[:, 1] * V[:, 2] / Z**2)
+return np.stack([ux, uy], axis=1)
+"""
+    },
+    "ex03_gauss_seidel": {  # a Jacobi sweep: the solver still converges, the sweep is wrong
+        "red_black_sweep": """
+v = np.array(v, dtype=float)
+H, W = v.shape
+deg = np.zeros((H, W))
+deg[1:, :] += 1
+deg[:-1, :] += 1
+deg[:, 1:] += 1
+deg[:, :-1] += 1
+s = np.zeros((H, W))
+s[1:] += v[:-1]
+s[:-1] += v[1:]
+s[:, 1:] += v[:, :-1]
+s[:, :-1] += v[:, 1:]
+return (rhs + lam * s) / (c + lam * deg)
+"""
+    },
+    "ex04_graph_scene_flow": {  # right-hand side without dt
+        "graph_scene_flow": """
+X = np.asarray(points, dtype=float)
+A = dt**2 * np.eye(len(X)) + lam * knn_laplacian(X, k, sigma)
+return np.linalg.solve(A, np.asarray(targets) - X)
+"""
+    },
+    "ex05_cv_model": {  # the syllabus' blkdiag(Q1d, Q1d)
+        "cv_process_noise": """
+q1d = q * np.array([[dt**4 / 4.0, dt**3 / 2.0], [dt**3 / 2.0, dt**2]])
+Q = np.zeros((4, 4))
+Q[:2, :2] = q1d
+Q[2:, 2:] = q1d
+return Q
+"""
+    },
+    "ex06_kalman_predict_update": {  # forgets R in the innovation covariance
+        "kf_update": """
+S = H @ P @ H.T
+K = P @ H.T @ np.linalg.pinv(S)
+x = x + K @ (z - H @ x)
+P = (np.eye(len(x)) - K @ H) @ P
+return x, P
+"""
+    },
+    "ex07_mahalanobis_gating": {  # gate with one degree of freedom whatever m is
+        "gated_cost": """
+from scipy.stats import chi2
+
+C = mahalanobis_cost(z_pred, S, Z)
+return np.where(C <= chi2.ppf(prob, 1), C, np.inf)
+"""
+    },
+    "ex08_hungarian": {  # greedy: repeatedly take the cheapest remaining pair
+        "hungarian": """
+C = np.array(cost, dtype=float)
+pairs = []
+for _ in range(min(C.shape)):
+    i, j = np.unravel_index(np.argmin(C), C.shape)
+    pairs.append((i, j))
+    C[i, :] = np.inf
+    C[:, j] = np.inf
+return np.array(pairs)
+"""
+    },
+    "ex09_track_management": {  # no coasting: confirmed tracks die at their first miss
+        "manage_tracks": """
+tracks = {}
+next_id = 0
+out = []
+for labels in frames:
+    tracks = {lab: t for lab, t in tracks.items() if lab in labels}
+    for t in tracks.values():
+        t[1] += 1
+        t[2] = t[2] or t[1] >= min_hits
+    for lab in labels:
+        if lab not in tracks:
+            tracks[lab] = [next_id, 1, min_hits <= 1]
+            next_id += 1
+    out.append(sorted([t[0], "confirmed" if t[2] else "tentative"] for t in tracks.values()))
+return out
+"""
+    },
+    "ex10_motion_clustering": {  # ignores min_speed: the static background becomes a cluster
+        "cluster_tracks": """
+from scipy.sparse.csgraph import connected_components
+
+P = np.asarray(points, dtype=float)
+V = np.asarray(flow, dtype=float)
+adj = (np.linalg.norm(P[:, None] - P[None], axis=2) <= radius) & (
+    np.linalg.norm(V[:, None] - V[None], axis=2) <= sigma_v
+)
+K, lab = connected_components(adj, directed=False)
+cents = np.array([P[lab == k].mean(axis=0) for k in range(K)])
+vels = np.array([V[lab == k].mean(axis=0) for k in range(K)])
+return cents, vels
+"""
+    },
+}
+
+# An answer that calls the blocked reference: {grade_id: whole cell source}.
+CHEAT = {
+    "ex01_projection_jacobian": {
+        "projection_jacobian": (
+            "from flowtrack.camera import PinholeCamera, projection_jacobian as _ref\n"
+            "def projection_jacobian(X, fx, fy):\n"
+            "    return _ref(X, PinholeCamera(fx, fy, 0.0, 0.0))\n"
+        ),
+        "project": (
+            "from flowtrack.camera import PinholeCamera, project as _ref_p\n"
+            "def project(X, fx, fy, cx, cy):\n"
+            "    return _ref_p(X, PinholeCamera(fx, fy, cx, cy))\n"
+        ),
+    },
+    "ex02_optical_flow": {
+        "optical_flow": (
+            "def optical_flow(X, V, dt, fx, fy):\n"
+            "    from flowtrack.camera import PinholeCamera, optical_flow_from_scene_flow\n"
+            "    return optical_flow_from_scene_flow(X, V, dt, PinholeCamera(fx, fy, 0.0, 0.0))\n"
+        )
+    },
+    "ex03_gauss_seidel": {
+        "red_black_sweep": (
+            "def red_black_sweep(v, rhs, c, lam):\n"
+            "    from flowtrack.variational import red_black_sweep as ref\n"
+            "    return ref(v.copy(), rhs, c, lam)\n"
+        ),
+        "solve_gauss_seidel": (
+            "def solve_gauss_seidel(a, b, dt, lam, tol=1e-10, max_sweeps=100000):\n"
+            "    import flowtrack.sceneflow as sf\n"
+            "    A, B = a[..., None] * [1, 1, 1], b[..., None] * [1, 1, 1]\n"
+            "    return sf.variational_scene_flow(A, B, dt, lam)[..., 0]\n"
+        ),
+    },
+    "ex04_graph_scene_flow": {
+        "knn_laplacian": (
+            "def knn_laplacian(points, k, sigma):\n"
+            "    from flowtrack.sceneflow import graph_laplacian, knn_graph\n"
+            "    return graph_laplacian(knn_graph(points, k, sigma)).toarray()\n"
+        ),
+        "graph_scene_flow": (
+            "def graph_scene_flow(points, targets, dt, lam, k, sigma):\n"
+            "    import importlib\n"
+            "    sf = importlib.import_module('flowtrack.sceneflow')\n"
+            "    return sf.graph_scene_flow(points, targets, dt, lam, k, sigma)\n"
+        ),
+    },
+    "ex05_cv_model": {
+        "cv_transition": (
+            "def cv_transition(dt):\n"
+            "    from flowtrack.kalman import constant_velocity_model\n"
+            "    return constant_velocity_model(dt, 1.0, 1.0)[0]\n"
+        ),
+        "cv_process_noise": (
+            "def cv_process_noise(dt, q):\n"
+            "    from flowtrack.kalman import white_noise_acceleration_Q\n"
+            "    return white_noise_acceleration_Q(dt, q)\n"
+        ),
+    },
+    "ex06_kalman_predict_update": {
+        "kf_predict": (
+            "def kf_predict(x, P, F, Q):\n"
+            "    from flowtrack.kalman import KalmanFilter\n"
+            "    kf = KalmanFilter(F, [[0.0] * len(x)], Q, [[1.0]], x, P)\n"
+            "    kf.predict()\n"
+            "    return kf.x, kf.P\n"
+        ),
+        "kf_update": (
+            "def kf_update(x, P, z, H, R):\n"
+            "    from flowtrack.kalman import KalmanFilter\n"
+            "    import numpy as np\n"
+            "    kf = KalmanFilter(np.eye(len(x)), H, np.zeros((len(x), len(x))), R, x, P)\n"
+            "    kf.update(z)\n"
+            "    return kf.x, kf.P\n"
+        ),
+    },
+    "ex07_mahalanobis_gating": {
+        "mahalanobis_cost": ("from flowtrack.association import mahalanobis_cost\n"),
+        "gated_cost": (
+            "def gated_cost(z_pred, S, Z, prob):\n"
+            "    import numpy as np\n"
+            "    from flowtrack.association import chi2_gate, mahalanobis_cost as m\n"
+            "    C = m(z_pred, S, Z)\n"
+            "    return np.where(C <= chi2_gate(z_pred.shape[1], prob), C, np.inf)\n"
+        ),
+    },
+    "ex08_hungarian": {
+        "hungarian": (
+            "def hungarian(cost):\n"
+            "    import numpy as np\n"
+            "    from scipy.optimize import linear_sum_assignment\n"
+            "    return np.column_stack(linear_sum_assignment(cost))\n"
+        )
+    },
+    "ex09_track_management": {
+        "manage_tracks": (
+            "def manage_tracks(frames, min_hits, max_misses):\n"
+            "    import numpy as np\n"
+            "    from flowtrack.tracking import MultiObjectTracker\n"
+            "    trk = MultiObjectTracker(1.0, 1e-4, 1e-2, min_hits=min_hits, max_misses=max_misses)\n"
+            "    out = []\n"
+            "    for labels in frames:\n"
+            "        trk.step(np.array([[50.0 * l, 0.0] for l in labels]).reshape(-1, 2))\n"
+            "        out.append([[t.id, t.status] for t in trk.tracks])\n"
+            "    return out\n"
+        )
+    },
+    "ex10_motion_clustering": {
+        "cluster_tracks": (
+            "def cluster_tracks(points, flow, radius, sigma_v, min_speed):\n"
+            "    import numpy as np\n"
+            "    from flowtrack.clustering import cluster_motion, tracks_from_clusters\n"
+            "    lab = cluster_motion(points, flow, radius, sigma_v, min_speed=min_speed,\n"
+            "                         method='connected', k=len(points), min_size=1)\n"
+            "    t = tracks_from_clusters(points, flow, lab)\n"
+            "    return np.array([c for c, _ in t]), np.array([v for _, v in t])\n"
+        )
+    },
+}
+
+
+def _wrong_sources(ex) -> dict[str, str]:
+    src = _answer_sources(_read(ex), ex)
+    for gid, body in WRONG[ex.id].items():
+        src[gid] = _replace_solution(src[gid], body)
+    return src
+
+
+def _cheat_sources(ex) -> dict[str, str]:
+    src = _answer_sources(_read(ex), ex)
+    src.update(CHEAT[ex.id])
+    return src
+
+
+# --------------------------------------------------------------------------------------------------
+# notebooks and registry
+# --------------------------------------------------------------------------------------------------
+def test_registry_lists_the_ten_notebooks():
+    assert [ex.notebook for ex in EXERCISES] == EXPECTED_FILES
+    assert sorted(p.name for p in EXDIR.glob("*.ipynb")) == EXPECTED_FILES
+    assert len(set(IDS)) == len(IDS)
+    for ex in EXERCISES:
+        assert ex.id == ex.notebook.removesuffix(".ipynb")
+        assert get_exercise(ex.id) is ex
+        assert get_exercise(EXDIR / ex.notebook) is ex
+        assert get_exercise(ex.notebook) is ex
+        assert ex.max_score == 10.0
+        assert ex.blocked, ex.id
+        assert {t.hidden for t in ex.tests} == {True, False}, "public and hidden tests"
+        assert len({t.name for t in ex.tests}) == len(ex.tests)
+    with pytest.raises(KeyError, match="no exercise"):
+        get_exercise("ex99_nothing")
+    with pytest.raises(TypeError, match="id_or_notebook_path"):
+        get_exercise(3)
+
+
+@pytest.mark.parametrize("ex", EXERCISES, ids=IDS)
+def test_notebook_is_valid_nbgrader_source(ex):
+    from nbgrader.nbgraderformat import MetadataValidator
+
+    nb = _read(ex)
+    nbformat.validate(nb)
+    MetadataValidator().validate_nb(nb)  # nbgrader's own schema check (v3), raises on bad metadata
+    assert nb.metadata["kernelspec"]["name"] == "python3"
+    ids = [_nbg(c)["grade_id"] for c in nb.cells if "nbgrader" in c.metadata]
+    assert len(ids) == len(set(ids)), f"duplicate grade_ids in {ex.notebook}"
+    for c in nb.cells:
+        if c.cell_type == "code":
+            assert c.outputs == [] and c.execution_count is None, "no outputs are committed"
+    answers = [c for c in nb.cells if _nbg(c).get("solution")]
+    tests = [c for c in nb.cells if _nbg(c).get("grade")]
+    assert tuple(_nbg(c)["grade_id"] for c in answers) == ex.answer_cells
+    for c in answers:
+        meta = _nbg(c)
+        assert c.cell_type == "code" and meta["grade"] is False and meta["locked"] is False
+        assert meta["schema_version"] == 3
+        src = c.source
+        assert src.count("### BEGIN SOLUTION") == 1 and src.count("### END SOLUTION") == 1
+        head = src.split("### BEGIN SOLUTION")[0]
+        # the signature and a numpy-style docstring with shapes stay visible to the student
+        assert re.search(r"^def \w+\(", head, flags=re.M) and "Returns\n" in head
+        assert "shape" in head or "length" in head
+    by_cell: dict[str, float] = {}
+    for t in ex.tests:
+        by_cell[t.grade_id] = by_cell.get(t.grade_id, 0.0) + t.points
+    assert {_nbg(c)["grade_id"] for c in tests} == set(by_cell)
+    for c in tests:
+        meta = _nbg(c)
+        assert c.cell_type == "code" and meta["locked"] is True and meta["solution"] is False
+        assert meta["points"] == pytest.approx(by_cell[meta["grade_id"]])
+        assert c.source.count("### BEGIN HIDDEN TESTS") == 1 and c.source.rstrip().endswith(
+            "### END HIDDEN TESTS"
+        )
+        hidden = c.source.split("### BEGIN HIDDEN TESTS")[1]
+        assert f'run_in_process("{ex.id}", globals(), cell="{meta["grade_id"]}"' in hidden
+        public = c.source.split("### BEGIN HIDDEN TESTS")[0]
+        assert public.strip(), "visible public checks"
+        ast.parse(c.source)
+    text = "\n".join(c.source for c in nb.cells if c.cell_type == "markdown")
+    assert "You may import" in text and "Not:" in text
+    for mod in ex.blocked:
+        if mod.startswith("flowtrack.") and mod != "flowtrack.grading":
+            assert f"`{mod}`" in text, f"{mod} is blocked but the notebook does not say so"
+
+
+def test_student_version_by_nbgrader_has_no_solution_or_hidden_test():
+    from nbgrader.preprocessors import ClearHiddenTests, ClearSolutions
+
+    for ex in EXERCISES:
+        nb = copy.deepcopy(_read(ex))
+        nb, _ = ClearSolutions().preprocess(nb, {})
+        nb, _ = ClearHiddenTests().preprocess(nb, {})
+        text = json.dumps(nb)
+        for marker in ("BEGIN SOLUTION", "END SOLUTION", "HIDDEN TESTS", "run_in_process"):
+            assert marker not in text, (ex.id, marker)
+        code = "\n".join(c.source for c in nb.cells if c.cell_type == "code")
+        assert code.count("raise NotImplementedError()") == len(ex.answer_cells)
+
+
+# --------------------------------------------------------------------------------------------------
+# scores through the in-process runner (the nbgrader path)
+# --------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("ex", EXERCISES, ids=IDS)
+def test_solution_scores_full_marks(ex):
+    ns = _namespace(_answer_sources(_read(ex), ex))
+    for student in ("alice", "bob"):
+        results = run_in_process(ex, ns, student=student)
+        assert _score(results) == pytest.approx(ex.max_score), results
+    # hidden inputs depend on the student, public ones do not
+    for t in ex.tests:
+        a = t.build(np.random.default_rng(student_seed("alice", ex.id, t.name)))[0]
+        b = t.build(np.random.default_rng(student_seed("bob", ex.id, t.name)))[0]
+        same = json.dumps([plain_data(list(c.args)) for c in a]) == json.dumps(
+            [plain_data(list(c.args)) for c in b]
+        )
+        assert same == (not t.hidden), t.name
+
+
+@pytest.mark.parametrize("ex", EXERCISES, ids=IDS)
+def test_stub_scores_zero(ex):
+    nb = _stub_notebook(ex)
+    src = _answer_sources(nb, ex)
+    assert all("raise NotImplementedError()" in s for s in src.values())
+    results = run_in_process(ex, _namespace(src), student="carol")
+    assert _score(results) == 0.0
+    assert any("not implemented" in r[3] for r in results if not r[0].startswith("hidden"))
+
+
+@pytest.mark.parametrize("ex", EXERCISES, ids=IDS)
+def test_wrong_answer_scores_in_between(ex):
+    results = run_in_process(ex, _namespace(_wrong_sources(ex)), student="dave")
+    assert 0.0 < _score(results) < ex.max_score, results
+
+
+def test_blkdiag_Q_loses_the_hidden_Q_points():
+    ex = get_exercise("ex05_cv_model")
+    results = {r[0]: r[1] for r in run_in_process(ex, _namespace(_wrong_sources(ex)), student="erin")}
+    assert results["Q: the full matrix for random dt and q"] == 0.0
+    assert results["F: random dt"] == 2.0
+
+
+def test_hungarian_brute_force_runs_out_of_time():
+    ex = get_exercise("ex08_hungarian")
+    src = _answer_sources(_read(ex), ex)
+    src["hungarian"] = (
+        "import itertools\nimport numpy as np\n"
+        "def hungarian(cost):\n"
+        "    C = np.asarray(cost, dtype=float)\n"
+        "    T = C.shape[0] > C.shape[1]\n"
+        "    C = C.T if T else C\n"
+        "    n, m = C.shape\n"
+        "    total = lambda s: sum(C[i, s[i]] for i in range(n))\n"
+        "    best = min(itertools.permutations(range(m), n), key=total)\n"
+        "    pairs = [(i, j) for i, j in enumerate(best)]\n"
+        "    return np.array([(j, i) for i, j in pairs] if T else pairs)\n"
+    )
+    # a shorter time limit than the grader's 10 s keeps this test fast; 12x12 and 30x30 are out of
+    # reach of brute force at any limit (12! = 4.8e8 permutations)
+    fast = dataclasses.replace(ex, tests=tuple(dataclasses.replace(t, timeout=1.0) for t in ex.tests))
+    results = {r[0]: r for r in run_in_process(fast, _namespace(src), student="frank")}
+    assert results["small matrices: 3x3, 2x4, 4x2, 1x1"][1] == 3.0
+    assert results["random matrices 9x9 to 30x30, with ties, rectangular"][1] == 0.0
+
+
+# --------------------------------------------------------------------------------------------------
+# the runner converts results as the sandboxed child does
+# --------------------------------------------------------------------------------------------------
+def test_in_process_runner_conversions_and_failures():
+    class Liar(np.ndarray):
+        def __eq__(self, other):
+            return True
+
+        def tolist(self):
+            return [[1.0, 0.0, 0.5, 0.0], [0.0, 1.0, 0.0, 0.5], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+
+    class AlwaysEqual:
+        def __eq__(self, other):
+            return True
+
+    ex = get_exercise("ex05_cv_model")
+    for fn in (
+        lambda dt: np.zeros((4, 4)).view(Liar),
+        lambda dt: AlwaysEqual(),
+        lambda dt: (_ for _ in ()).throw(SystemExit(0)),
+        lambda dt: "F",
+    ):
+        results = run_in_process(ex, {"cv_transition": fn}, cell="test_F")
+        assert _score(results) == 0.0
+    assert plain_data((np.float64(1.5), np.arange(2), [True, None, "s"])) == [1.5, [0, 1], [True, None, "s"]]
+    with pytest.raises(TypeError):
+        plain_data({1: 2})
+    with pytest.raises(TypeError):
+        plain_data(np.array(["a"]))
+
+
+def test_in_process_runner_times_out_an_infinite_loop():
+    ex = get_exercise("ex05_cv_model")
+
+    def spin(dt):
+        while True:
+            pass
+
+    fast = dataclasses.replace(ex, tests=tuple(dataclasses.replace(t, timeout=0.2) for t in ex.tests))
+    results = run_in_process(
+        fast, {"cv_transition": spin, "cv_process_noise": lambda dt, q: np.eye(4)}, cell="test_F"
+    )
+    assert _score(results) == 0.0
+    assert "timed out after 0.2 s" in results[0][3]
+
+
+def test_scorer_messages_for_public_tests():
+    ex = get_exercise("ex01_projection_jacobian")
+    ns = {"project": lambda X, fx, fy, cx, cy: np.zeros((2, 2))}
+    (res,) = run_in_process(ex, ns, cell="test_project", hidden=False)
+    assert res[1] == 0.0 and "shape (3, 2)" in res[3]
+    (res,) = run_in_process(ex, ns, cell="test_project", hidden=True)
+    assert res[3].startswith("hidden test")  # hidden tests report the score only
+
+
+# --------------------------------------------------------------------------------------------------
+# independent oracle for exercise 9's expected values (the trusted tracker)
+# --------------------------------------------------------------------------------------------------
+def _bookkeeping_oracle(frames, min_hits, max_misses):
+    """The rule of the exercise, written as plainly as possible (lists, no dicts of tracks)."""
+    live = []  # [id, label, hits, misses, confirmed]
+    nid = 0
+    out = []
+    for labels in frames:
+        for t in live:
+            if t[1] in labels:
+                t[2], t[3] = t[2] + 1, 0
+            else:
+                t[3] += 1
+            if t[2] >= min_hits:
+                t[4] = True
+        live = [t for t in live if not (t[3] > 0 and not t[4]) and t[3] <= max_misses]
+        for lab in labels:
+            if all(t[1] != lab for t in live):
+                live.append([nid, lab, 1, 0, min_hits <= 1])
+                nid += 1
+        status = lambda t: "tentative" if not t[4] else ("coasting" if t[3] else "confirmed")  # noqa: E731
+        out.append([[t[0], status(t)] for t in sorted(live)])
+    return out
+
+
+def test_ex09_tracker_follows_the_stated_rule():
+    rng = np.random.default_rng(9)
+    for trial in range(60):
+        n_obj = int(rng.integers(1, 7))
+        frames = [
+            [int(v) for v in rng.permutation(n_obj)[: int(rng.integers(0, n_obj + 1))]]
+            for _ in range(int(rng.integers(1, 30)))
+        ]
+        min_hits, max_misses = int(rng.integers(1, 4)), int(rng.integers(0, 5))
+        assert _ex09_expected(frames, min_hits, max_misses) == _bookkeeping_oracle(
+            frames, min_hits, max_misses
+        ), trial
+
+
+def test_ex08_expected_optimum_matches_brute_force():
+    """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
+    from flowtrack.grading.exercises import _assignment_check
+
+    rng = np.random.default_rng(8)
+    for _ in range(30):
+        M, N = (int(v) for v in rng.integers(1, 6, size=2))
+        C = rng.integers(0, 3, size=(M, N)).astype(float)
+        K = min(M, N)
+        best = None
+        for rows in itertools.permutations(range(M), K) if M > N else [tuple(range(M))]:
+            for cols in itertools.permutations(range(N), K):
+                s = sum(C[r, c] for r, c in zip(rows, cols))
+                if best is None or s < best[0]:
+                    best = (s, [[r, c] for r, c in zip(rows, cols)])
+        assert _assignment_check(C)(Outcome(True, best[1]))[0] == 1.0
+        if K > 0 and np.ptp(C) > 0:
+            worst = max(
+                (sum(C[r, c] for r, c in zip(range(K), cols)), cols)
+                for cols in itertools.permutations(range(N), K)
+            )
+            if M <= N and worst[0] > best[0]:
+                pairs = [[r, c] for r, c in zip(range(K), worst[1])]
+                assert _assignment_check(C)(Outcome(True, pairs))[0] == 0.0
+
+
+# --------------------------------------------------------------------------------------------------
+# the same, through the grader's sandbox
+# --------------------------------------------------------------------------------------------------
+def _sandbox_score(ex, sources: dict[str, str], student: str = "sandbox-student") -> tuple[float, dict]:
+    from flowtrack.grading.sandbox import Sandbox
+
+    cells = [(gid, sources[gid]) for gid in ex.answer_cells]
+    total = 0.0
+    with Sandbox(cells, blocked=ex.blocked) as sb:
+        for t in ex.tests:
+            calls, scorer = t.build(np.random.default_rng(student_seed(student, ex.id, t.name)))
+            fraction, _ = scorer(sb.run(calls, timeout=t.timeout))
+            total += t.points * fraction
+        errors = dict(sb.cell_errors)
+    return total, errors
+
+
+def _sandbox_available() -> bool:
+    try:
+        import flowtrack.grading.sandbox  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+needs_sandbox = pytest.mark.skipif(
+    not _sandbox_available(), reason="flowtrack.grading.sandbox not importable"
+)
+
+
+@needs_sandbox
+@pytest.mark.parametrize("ex", EXERCISES, ids=IDS)
+def test_sandbox_scores_solution_stub_wrong_and_cheat(ex):
+    from flowtrack.grading.notebook import extract_cells
+
+    solution = dict(extract_cells(EXDIR / ex.notebook, ex.answer_cells))
+    score, errors = _sandbox_score(ex, solution)
+    assert score == pytest.approx(ex.max_score) and not errors
+    stub = _answer_sources(_stub_notebook(ex), ex)
+    assert _sandbox_score(ex, stub)[0] == 0.0
+    assert 0.0 < _sandbox_score(ex, _wrong_sources(ex))[0] < ex.max_score
+    # calling the blocked reference (which gives full marks in process) scores nothing in the sandbox
+    cheat = _cheat_sources(ex)
+    assert _score(run_in_process(ex, _namespace(cheat))) == pytest.approx(ex.max_score)
+    assert _sandbox_score(ex, cheat)[0] == 0.0
+
+
+# --------------------------------------------------------------------------------------------------
+# nbgrader compatibility: a real kernel runs the source notebook; nbgrader reads partial credit
+# --------------------------------------------------------------------------------------------------
+def test_nbgrader_executes_notebook_with_partial_credit():
+    pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    from nbclient import NotebookClient
+    from nbgrader.utils import determine_grade
+
+    ex = get_exercise("ex05_cv_model")
+    nb = _read(ex)
+    # right for dt < 1 only (the public test uses dt = 0.5): public asserts pass, hidden ones partly
+    partial_body = WRONG[ex.id]["cv_process_noise"].replace(
+        "Q = np.zeros((4, 4))", "if dt < 1:\n    return np.kron(q1d, np.eye(2))\nQ = np.zeros((4, 4))"
+    )
+    partial = copy.deepcopy(nb)
+    for c in partial.cells:
+        if _nbg(c).get("grade_id") == "cv_process_noise":
+            c.source = _replace_solution(c.source, partial_body)
+    expected = _score(run_in_process(ex, _namespace(_answer_sources(partial, ex)), cell="test_Q"))
+    assert 2.0 < expected < 7.0
+    grades = []
+    for book in (nb, partial):
+        book = copy.deepcopy(book)
+        NotebookClient(book, timeout=120, kernel_name="python3", allow_errors=True).execute()
+        grades.append(
+            {_nbg(c)["grade_id"]: determine_grade(c)[0] for c in book.cells if _nbg(c).get("grade")}
+        )
+    assert grades[0] == {"test_F": 3.0, "test_Q": 7.0}
+    assert grades[1] == {"test_F": 3.0, "test_Q": pytest.approx(expected)}
