@@ -1,0 +1,274 @@
+"""The grader's sandbox: protocol, conversion, cell errors, restarts, limits, blocked modules.
+
+Expected values are computed here with numpy (the independent oracle); the sandbox only transports.
+The attack suite is in test_grading_attacks.py.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flowtrack.grading.notebook import NotebookError, extract_cells
+from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack.grading.spec import Call, compare_arrays
+
+pytestmark = pytest.mark.xdist_group("sandbox")
+
+REPO = Path(__file__).resolve().parents[1]
+FAST = Limits(cpu_seconds=5, wall_seconds=10, memory_bytes=1 << 30)
+
+
+@pytest.fixture(params=["bwrap", "fallback"])
+def mode(request, monkeypatch):
+    if request.param == "bwrap":
+        ok, why = bwrap_status()
+        assert ok, f"bubblewrap must work for the grader's tests (make test installs it): {why}"
+    monkeypatch.setenv("FLOWTRACK_SANDBOX", request.param)
+    return request.param
+
+
+# -- extract_cells ----------------------------------------------------------------------------------
+
+
+def _cell(gid, src, kind="code"):
+    cell = {"cell_type": kind, "metadata": {"nbgrader": {"grade_id": gid, "solution": True}}, "source": src}
+    if kind == "code":
+        cell.update(execution_count=None, outputs=[])
+    return cell
+
+
+def _write_nb(path, cells):
+    nb = {"nbformat": 4, "nbformat_minor": 5, "metadata": {}, "cells": cells}
+    path.write_text(json.dumps(nb))
+    return path
+
+
+def test_extract_cells_order_duplicates_and_lists(tmp_path):
+    nb = _write_nb(tmp_path / "a.ipynb", [
+        _cell("intro", "# text", kind="markdown"),
+        _cell("second", ["def g():\n", "    return 2\n"]),
+        _cell("first", "def f():\n    return 1\n"),
+        _cell("second", "def g():\n    return 'duplicate'\n"),
+        {"cell_type": "code", "metadata": {}, "source": "x = 1", "outputs": [], "execution_count": None},
+    ])
+    got = extract_cells(nb, ["first", "second"])
+    assert got == [("second", "def g():\n    return 2\n"), ("first", "def f():\n    return 1\n")]
+
+
+@pytest.mark.parametrize(
+    "content, match",
+    [
+        ("{not json", "not valid JSON"),
+        ("[1, 2]", "no list of cells"),
+        ('{"cells": 3}', "no list of cells"),
+    ],
+)
+def test_extract_cells_rejects_non_notebooks(tmp_path, content, match):
+    p = tmp_path / "bad.ipynb"
+    p.write_text(content)
+    with pytest.raises(NotebookError, match=match):
+        extract_cells(p, ["answer"])
+
+
+def test_extract_cells_missing_markdown_and_bad_arguments(tmp_path):
+    nb = _write_nb(tmp_path / "a.ipynb", [_cell("answer", "x = 1"), _cell("text", "hi", kind="markdown")])
+    with pytest.raises(NotebookError, match="no cell with grade id 'other'"):
+        extract_cells(nb, ["answer", "other"])
+    with pytest.raises(NotebookError, match="not a code cell"):
+        extract_cells(nb, ["text"])
+    with pytest.raises(NotebookError, match="cannot read"):
+        extract_cells(tmp_path / "missing.ipynb", ["answer"])
+    with pytest.raises(TypeError, match="grade_ids"):
+        extract_cells(nb, "answer")
+    assert issubclass(NotebookError, ValueError)
+
+
+# -- protocol and conversion ------------------------------------------------------------------------
+
+ECHO = """
+import numpy as np
+def describe(x):
+    return {"type": type(x).__name__, "dtype": str(getattr(x, "dtype", "")), "shape": list(np.shape(x))}
+def add(a, b):
+    return np.asarray(a) + b
+def scalar():
+    return np.float32(1.5), np.int64(7), np.bool_(True), 2, "text", None
+def special():
+    return [float("nan"), float("inf"), -float("inf")]
+def obj():
+    return object()
+def cplx():
+    return np.ones(2) * 1j
+"""
+
+
+def test_protocol_roundtrip_and_conversion(mode, rng):
+    a = rng.normal(size=(3, 2))
+    b = rng.normal(size=(3, 2))
+    calls = [
+        Call("add", (a, b)),
+        Call("describe", (a,)),
+        Call("describe", (np.arange(4).reshape(2, 2),)),
+        Call("describe", (np.zeros((0, 3)),)),
+        Call("describe", ([1, 2, 3],)),
+        Call("describe", (3,)),
+        Call("describe", (), {"x": (1.0, 2.0)}),
+        Call("scalar"),
+        Call("special"),
+        Call("obj"),
+        Call("cplx"),
+    ]
+    with Sandbox([("echo", ECHO)], limits=FAST) as sb:
+        assert sb.isolation == "bwrap" if mode == "bwrap" else sb.isolation.startswith("fallback:")
+        out = sb.run(calls, timeout=20)
+    assert compare_arrays(out[0], a + b, rtol=0, atol=0) == (True, "ok")  # JSON keeps float64 exactly
+    assert out[1].value == {"type": "ndarray", "dtype": "float64", "shape": [3, 2]}
+    assert out[2].value == {"type": "ndarray", "dtype": "int64", "shape": [2, 2]}
+    assert out[3].value == {"type": "ndarray", "dtype": "float64", "shape": [0, 3]}
+    assert out[4].value == {"type": "list", "dtype": "", "shape": [3]}
+    assert out[5].value == {"type": "int", "dtype": "", "shape": []}
+    assert out[6].value == {"type": "list", "dtype": "", "shape": [2]}  # tuples travel as lists
+    assert out[7].value == [1.5, 7, True, 2, "text", None]
+    assert [type(v) for v in out[7].value[:4]] == [float, int, bool, int]
+    v = out[8].value
+    assert math.isnan(v[0]) and v[1] == math.inf and v[2] == -math.inf
+    assert not out[9].ok and "object" in out[9].error
+    assert not out[10].ok and "complex" in out[10].error
+
+
+def test_arguments_that_cannot_be_sent_raise():
+    sb = Sandbox([("a", "x = 1")])
+    with pytest.raises(TypeError, match="cannot be sent"):
+        sb.run([Call("f", (object(),))])
+    with pytest.raises(TypeError, match="Call"):
+        sb.run(["f"])
+    with pytest.raises(ValueError, match="timeout"):
+        sb.run([Call("f")], timeout=0)
+    with pytest.raises(TypeError, match="cells"):
+        Sandbox("def f(): pass")
+    with pytest.raises(TypeError, match="blocked"):
+        Sandbox([("a", "")], blocked="scipy")
+    with pytest.raises(ValueError, match="cpu_seconds"):
+        Limits(cpu_seconds=-1)
+
+
+def test_cell_errors_are_reported_and_other_cells_run(mode):
+    cells = [
+        ("broken", "def f(:\n    pass\n"),
+        ("raises", "raise RuntimeError('boom')"),
+        ("exits", "import sys\nsys.exit(3)"),
+        ("good", "def g(x):\n    return 2 * x\n"),
+    ]
+    with Sandbox(cells, limits=FAST) as sb:
+        out = sb.run([Call("g", (21,)), Call("f", (1,))], timeout=20)
+        assert set(sb.cell_errors) == {"broken", "raises", "exits"}
+        assert "SyntaxError" in sb.cell_errors["broken"]
+        assert "RuntimeError: boom" in sb.cell_errors["raises"]
+        assert "sys.exit" in sb.cell_errors["exits"]
+    assert out[0].ok and out[0].value == 42
+    assert not out[1].ok and "no function named 'f'" in out[1].error
+
+
+def test_prints_are_captured_not_mixed_with_replies(mode):
+    src = "import os\ndef f(x):\n    print('hello', x)\n    os.write(1, b'raw fd write')\n    return x\n"
+    with Sandbox([("a", src)], limits=FAST) as sb:
+        out = sb.run([Call("f", (5,))], timeout=20)
+        assert out[0].value == 5
+        assert "hello 5" in sb.stdout
+
+
+def test_restart_after_crash_reexecutes_cells(mode):
+    src = (
+        "import os\ncount = 0\n"
+        "def bump():\n    global count\n    count += 1\n    return count\n"
+        "def die():\n    os._exit(0)\n"
+    )
+    with Sandbox([("a", src)], limits=FAST) as sb:
+        assert [o.value for o in sb.run([Call("bump"), Call("bump")], timeout=20)] == [1, 2]
+        out = sb.run([Call("bump"), Call("die"), Call("bump")], timeout=20)
+        assert out[0].value == 3
+        assert not out[1].ok and "exited" in out[1].error
+        assert not out[2].ok and "exited" in out[2].error
+        # a fresh child: the cells ran again, so the counter starts over
+        assert [o.value for o in sb.run([Call("bump")], timeout=20)] == [1]
+
+
+def test_timeout_cpu_memory_and_output_limits(mode):
+    src = (
+        "import numpy as np\n"
+        "def spin():\n    while True:\n        pass\n"
+        "def sleep():\n    import time\n    time.sleep(60)\n"
+        "def hog():\n    return np.ones(1 << 31).sum()\n"
+        "def big():\n    return list(range(400_000))\n"
+        "def ok():\n    return 1\n"
+    )
+    lim = Limits(cpu_seconds=1, wall_seconds=5, memory_bytes=1 << 30, output_bytes=1 << 20)
+    with Sandbox([("a", src)], limits=lim) as sb:
+        out = sb.run([Call("spin"), Call("ok")], timeout=60)  # generous: the CPU limit must fire first
+        assert [o.ok for o in out] == [False, False]
+        assert "CPU time" in out[0].error
+        out = sb.run([Call("sleep")], timeout=1)
+        assert out[0].error == "timed out after 1 s"
+        out = sb.run([Call("hog"), Call("ok")], timeout=20)
+        assert "memory" in out[0].error and out[1].value == 1
+        out = sb.run([Call("big"), Call("ok")], timeout=20)
+        assert "output limit" in out[0].error and not out[1].ok
+        assert sb.run([Call("ok")], timeout=20)[0].value == 1
+
+
+def test_blocked_modules_and_filtered_flowtrack(mode):
+    src = """
+import importlib
+def try_import(name):
+    try:
+        importlib.import_module(name)
+        return "ok"
+    except ImportError as exc:
+        return "ImportError: " + str(exc)
+"""
+    blocked = ["flowtrack.kalman", "scipy.optimize"]
+    with Sandbox([("a", src)], blocked=blocked, limits=FAST) as sb:
+        names = ["flowtrack.kalman", "flowtrack.camera", "flowtrack.grading", "flowtrack.grading.sandbox",
+                 "scipy.optimize", "scipy.linalg", "numpy"]
+        outcomes = sb.run([Call("try_import", (n,)) for n in names], timeout=30)
+        out = dict(zip(names, (o.value for o in outcomes)))
+    assert out["flowtrack.kalman"] == "ImportError: flowtrack.kalman is not available in this exercise"
+    assert out["flowtrack.camera"] == "ok"
+    assert out["flowtrack.grading"].startswith("ImportError")
+    assert out["flowtrack.grading.sandbox"].startswith("ImportError")
+    assert out["scipy.optimize"].startswith("ImportError") and "scipy.optimize" in out["scipy.optimize"]
+    assert out["scipy.linalg"] == "ok" and out["numpy"] == "ok"
+
+
+def test_the_repository_is_invisible_under_bwrap(monkeypatch):
+    assert bwrap_status()[0], "bubblewrap must work for the grader's tests"
+    monkeypatch.setenv("FLOWTRACK_SANDBOX", "bwrap")
+    src = """
+import os, sys
+def look(path):
+    return os.path.exists(path)
+def ls(path):
+    return sorted(os.listdir(path)) if os.path.isdir(path) else None
+def env():
+    return sorted(os.environ)
+def ident():
+    return [os.getuid(), os.getcwd(), os.listdir("."), sorted(os.listdir("/"))]
+"""
+    with Sandbox([("a", src)], limits=FAST) as sb:
+        out = sb.run([Call("look", (str(REPO),)), Call("ls", (str(Path.home()),)), Call("env"),
+                      Call("ident")], timeout=20)
+    assert out[0].value is False
+    # at most the directories leading to a bound Python runtime (e.g. pyenv's), nothing else of home
+    assert out[1].value in (None, [], [".pyenv"], [".local"])
+    assert set(out[2].value) <= {"PATH", "HOME", "PWD", "TMPDIR", "LANG", "MPLBACKEND",
+                                 "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
+                                 "PYTHONDONTWRITEBYTECODE"}
+    uid, cwd, listing, root = out[3].value
+    assert uid == 65534 and cwd == "/home/student" and listing == []
+    assert "work" not in root
+    if os.geteuid() == 0:  # the grader is root: the child must not be
+        assert sb._uid is None or sb._uid >= 1_600_000_000
