@@ -16,16 +16,16 @@ APT_CORE := libusb-1.0-0 libgomp1 libsuitesparse-dev
 # The autograder's sandbox (bubblewrap: namespaces, no network, nothing of the course visible).
 APT_GRADER := bubblewrap
 # Ports (issue 6): C++ (Eigen, PCL), Java (EJML, JUnit 5, OpenCV), Octave.
-APT_PORTS_CPP :=
-APT_PORTS_JVM :=
-APT_PORTS_OCTAVE :=
+APT_PORTS_CPP := g++ cmake make libeigen3-dev libpcl-dev nlohmann-json3-dev libgtest-dev
+APT_PORTS_JVM := openjdk-17-jdk-headless libejml-java junit5 libgoogle-gson-java libopencv-java
+APT_PORTS_OCTAVE := octave
 # The rendered book and its browser test.
-APT_BOOK :=
+APT_BOOK := chromium chromium-driver
 APT_TEST := $(APT_CORE) $(APT_GRADER) $(APT_PORTS_CPP) $(APT_PORTS_JVM) $(APT_PORTS_OCTAVE) $(APT_BOOK)
 PIP_EXTRAS := dev,lessons,fast,grading,ports,book
 OUT ?= out
 
-.PHONY: demo test sysdeps lint bench clean
+.PHONY: demo test sysdeps lint bench book clean
 
 # `make sysdeps APT_PACKAGES="..."` installs the Debian packages that are missing.
 APT_PACKAGES ?= $(APT_CORE)
@@ -56,6 +56,10 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
+
+# The lessons and solutions, executed, as a static site that reads offline: open $(OUT)/book/index.html
+book: $(STAMP)
+	$(PY) -m flowtrack.book --out $(OUT)/book
 
 clean:
 	rm -rf $(OUT) .pytest_cache .ruff_cache
