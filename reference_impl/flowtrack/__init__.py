@@ -34,6 +34,7 @@ _SUBMODULES = {
     "synth",
     "realdata",
     "symbolic",
+    "widgets",
 }
 
 __all__ = [*sorted(_SUBMODULES), "__version__"]
