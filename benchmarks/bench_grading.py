@@ -1,0 +1,178 @@
+"""Benchmark: ``flowtrack grade --jobs 2``, 100 students x all exercises, vs ``nbgrader autograde``.
+
+The class: 100 students, a third with every solution (the exercises' source notebooks), a third
+with the released stubs, a third partial (every other exercise solved; in exercises with two answer
+cells only the first one). flowtrack grades the whole class with ``--jobs 2`` (one sandbox per
+student and exercise). The peer is ``nbgrader autograde`` on the same notebooks in a throwaway
+nbgrader course made in a temporary folder (``generate_assignment`` first, not timed); nbgrader
+runs one kernel per notebook, one student after the other, so it is measured on a few students
+(one of each kind, the same mix) and compared per student. Both are measured in the same run, on
+the same machine.
+
+Targets (issue 5): the whole class in < 5 minutes and >= 3x faster per student than nbgrader.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_grading.py [--quick] [--check]
+
+Prints its table and, unless ``--quick``, writes it to ``benchmarks/results/grading.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import nbformat
+
+from _results import publish
+from flowtrack.grading.exercises import EXERCISES
+from flowtrack.grading.release import release_notebook
+
+ROOT = Path(__file__).resolve().parents[1]
+KINDS = ("solution", "stub", "partial")
+
+
+def _student_notebook(ex, index: int, kind: str, sources: dict, stubs: dict):
+    if kind == "solution":
+        return sources[ex.id]
+    if kind == "stub":
+        return stubs[ex.id]
+    if index % 2 == 0:
+        return sources[ex.id]
+    nb = nbformat.from_dict(stubs[ex.id])
+    first = ex.answer_cells[0]
+    if len(ex.answer_cells) > 1:
+        for cell, src in zip(nb.cells, sources[ex.id].cells):
+            if cell.metadata.get("nbgrader", {}).get("grade_id") == first:
+                cell.source = src.source
+    return nb
+
+
+def make_class(dest: Path, n_students: int) -> list[tuple[str, str]]:
+    sources = {ex.id: nbformat.read(ROOT / "exercises" / ex.notebook, as_version=4) for ex in EXERCISES}
+    stubs = {k: release_notebook(v) for k, v in sources.items()}
+    students = []
+    for s in range(n_students):
+        kind = KINDS[s % 3]
+        name = f"s{s:03d}_{kind}"
+        for i, ex in enumerate(EXERCISES):
+            p = dest / name / ex.notebook
+            p.parent.mkdir(parents=True, exist_ok=True)
+            nbformat.write(_student_notebook(ex, i, kind, sources, stubs), p)
+        students.append((name, kind))
+    return students
+
+
+def run_flowtrack(subs: Path, out: Path, jobs: int) -> tuple[float, dict[str, float]]:
+    exe = Path(sys.executable).parent / "flowtrack"
+    t0 = time.perf_counter()
+    subprocess.run(
+        [str(exe), "grade", str(subs), "--out", str(out), "--jobs", str(jobs), "--no-progress"],
+        check=True, stdout=subprocess.DEVNULL,
+    )
+    wall = time.perf_counter() - t0
+    with open(out / "grades.csv") as fh:
+        totals = {r["student"]: float(r["total"]) for r in csv.DictReader(fh)}
+    return wall, totals
+
+
+def run_nbgrader(course: Path, students: list[tuple[str, str]], subs: Path) -> tuple[float, dict[str, float]]:
+    bindir = Path(sys.executable).parent
+    env = dict(os.environ, PATH=f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}")
+    (course / "source" / "ps1").mkdir(parents=True)
+    for ex in EXERCISES:
+        shutil.copy(ROOT / "exercises" / ex.notebook, course / "source" / "ps1" / ex.notebook)
+    (course / "nbgrader_config.py").write_text(
+        "c = get_config()\n"
+        f"c.CourseDirectory.root = {str(course)!r}\n"
+        "c.CourseDirectory.course_id = 'bench'\n"
+        "c.ExecutePreprocessor.timeout = 120\n"
+    )
+    nbg = [str(bindir / "nbgrader")]
+    subprocess.run([*nbg, "generate_assignment", "ps1", "--force"], cwd=course, env=env, check=True,
+                   capture_output=True)
+    for name, _ in students:
+        shutil.copytree(subs / name, course / "submitted" / name / "ps1")
+    t0 = time.perf_counter()
+    subprocess.run([*nbg, "autograde", "ps1", "--force"], cwd=course, env=env, check=True,
+                   capture_output=True)
+    wall = time.perf_counter() - t0
+    subprocess.run([*nbg, "export", "--to", str(course / "export.csv")], cwd=course, env=env, check=True,
+                   capture_output=True)
+    with open(course / "export.csv") as fh:
+        totals = {r["student_id"]: float(r["raw_score"]) for r in csv.DictReader(fh)}
+    return wall, totals
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="6 students, 1 for nbgrader (smoke run)")
+    ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
+    ap.add_argument("--students", type=int, default=None, help="class size (default 100; quick: 6)")
+    ap.add_argument("--nbgrader-students", type=int, default=None, help="students for nbgrader (default 3)")
+    args = ap.parse_args(argv)
+    n = args.students or (6 if args.quick else 100)
+    n_nb = args.nbgrader_students or (1 if args.quick else 3)
+    jobs = 2
+    with tempfile.TemporaryDirectory(prefix="bench-grading-") as tmp:
+        tmp = Path(tmp)
+        students = make_class(tmp / "subs", n)
+        ft_wall, ft_totals = run_flowtrack(tmp / "subs", tmp / "out", jobs)
+        rerun_t0 = time.perf_counter()
+        run_flowtrack(tmp / "subs", tmp / "out", jobs)  # idempotent re-run: every student is kept
+        rerun_wall = time.perf_counter() - rerun_t0
+        nb_students = students[:n_nb]
+        nb_wall, nb_totals = run_nbgrader(tmp / "course", nb_students, tmp / "subs")
+    max_total = sum(ex.max_score for ex in EXERCISES)
+    ft_per, nb_per = ft_wall / n, nb_wall / n_nb
+    ratio = nb_per / ft_per
+    rows = [
+        "# Grading benchmark",
+        "",
+        f"{n} synthetic students x {len(EXERCISES)} exercises ({max_total:g} points; a third solutions, "
+        "a third stubs, a third partial). flowtrack: `flowtrack grade --jobs 2`, one sandboxed child per "
+        "student and exercise, the whole class. Peer: `nbgrader autograde` (one kernel per notebook, "
+        f"students one after the other) on the first {n_nb} students of the same class (one of each "
+        "kind), in a throwaway nbgrader course; compared per student. Same run, same machine.",
+        "",
+        "| grader | students | wall s | s / student |",
+        "|---|---:|---:|---:|",
+        f"| `flowtrack grade --jobs 2` | {n} | {ft_wall:.1f} | {ft_per:.2f} |",
+        f"| `flowtrack grade --jobs 2`, re-run (all kept) | {n} | {rerun_wall:.1f} | {rerun_wall / n:.3f} |",
+        f"| `nbgrader autograde` | {n_nb} | {nb_wall:.1f} | {nb_per:.2f} |",
+        "",
+        "| student | kind | flowtrack | nbgrader |",
+        "|---|---|---:|---:|",
+    ]
+    for name, kind in nb_students:
+        theirs = nb_totals.get(name, float("nan"))
+        rows.append(f"| {name} | {kind} | {ft_totals.get(name, 0):g} | {theirs:g} |")
+    rows += [
+        "",
+        "(nbgrader's hidden-test cells call the same scorers in the student's kernel; their hidden inputs "
+        "are not seeded per student, so partial scores may differ.)",
+        "",
+        "| target | measured | met |",
+        "|---|---:|:---:|",
+        f"| whole class < 300 s | {ft_wall:.1f} s | {'yes' if ft_wall < 300 else 'no'} |",
+        f"| per student >= 3x faster than nbgrader | {ratio:.1f}x | {'yes' if ratio >= 3 else 'no'} |",
+        "",
+        f"Python {platform.python_version()}, {platform.machine()}, {os.cpu_count()} CPUs, 1-min load "
+        f"average {os.getloadavg()[0]:.1f} at the end; {'quick' if args.quick else 'full'} run.",
+    ]
+    publish("grading", "\n".join(rows) + "\n", args.quick)
+    met = ft_wall < 300 * n / 100 and ratio >= 3
+    return 1 if (args.check and not met) else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
