@@ -1,5 +1,5 @@
 # flowtrack: two set-up commands on a fresh machine.
-#   make demo   - the main job (synthetic RGB-D scene -> scene flow -> clusters -> metrics, figures in out/)
+#   make demo   - the main job (synthetic RGB-D -> scene flow -> clusters -> tracks -> prediction; out/report.html)
 #   make test   - the whole test suite (lint, doctests, unit, property and integration tests)
 # Both create .venv when needed and install what they need (Debian packages through apt-get;
 # sudo is used only when not root).

@@ -53,7 +53,7 @@ __all__ = [
     "ray_directions",
 ]
 
-SCENARIOS = ("default", "crossing", "occlusion")
+SCENARIOS = ("default", "crossing", "occlusion", "mixed")
 
 _PALETTE = np.array(
     [
@@ -850,7 +850,10 @@ def make_scene(
         opposite directions at different distances from the camera, so their images cross and 1
         passes in front of 2 around the middle of the sequence; needs ``n_objects >= 2``) or
         ``"occlusion"`` (a static tall box, label 0, hides object 1 completely for a few frames
-        in the middle; needs ``n_objects >= 1``). Remaining objects move randomly.
+        in the middle; needs ``n_objects >= 1``) or ``"mixed"`` (both at once, the demo's scene:
+        objects 1 and 2 cross as in ``"crossing"`` on shorter paths, object 3 slides behind a
+        static box on the right and is hidden for a few frames in the first half; needs
+        ``n_objects >= 3``). Remaining objects move randomly.
         ``shapes`` : sequence of ``"box"``/``"cylinder"`` per object (default: alternate, random
         start). ``speed`` : ``(low, high)`` translation speed range in m/s (default (0.06, 0.15)).
         ``max_angular_speed`` : rad/s (default 0.8). ``bend`` : maximal lateral bulge of a path
@@ -899,6 +902,8 @@ def make_scene(
         raise ValueError(f"n_objects must be >= 2 for scenario='crossing', got {n_objects}")
     if scenario == "occlusion" and n_objects < 1:
         raise ValueError(f"n_objects must be >= 1 for scenario='occlusion', got {n_objects}")
+    if scenario == "mixed" and n_objects < 3:
+        raise ValueError(f"n_objects must be >= 3 for scenario='mixed', got {n_objects}")
 
     rng = np.random.default_rng(seed)
     noise_rng = np.random.default_rng(rng.integers(2**63))
@@ -956,6 +961,23 @@ def make_scene(
         x1 = 0.26
         trajectories[1] = _straight_trajectory(rng, (-x1, 0.36), (x1, 0.36), duration, objects[1], opts)
         placed = [(trajectories[1], objects[1].radius)]
+    elif scenario == "mixed":
+        # 1 (tall, near) crosses in front of 2 (low, middle) around the middle of the sequence and
+        # hides it for a few frames; 3 (small, low, far) slides left to right behind a static box
+        objects[1] = Box((0.045, 0.04, 0.11)) if kinds[0] == "box" else Cylinder(0.045, 0.11)
+        objects[2] = Box((0.04, 0.04, 0.035)) if kinds[1] == "box" else Cylinder(0.04, 0.035)
+        objects[3] = Box((0.03, 0.03, 0.035)) if kinds[2] == "box" else Cylinder(0.03, 0.035)
+        s1, s2, s3 = objects[1], objects[2], objects[3]
+        y1, y2, y3 = 0.01 + s1.radius, 0.22, 0.44 - s3.radius
+        trajectories[1] = _straight_trajectory(rng, (-0.2, y1), (0.16, y1), duration, s1, opts)
+        trajectories[2] = _straight_trajectory(rng, (0.2, y2), (-0.2, y2), duration, s2, opts)
+        trajectories[3] = _straight_trajectory(rng, (-0.05, y3), (0.3, y3), duration, s3, opts)
+        occ = Box((0.05, 0.02, 0.07))
+        T_wocc = np.eye(4)
+        T_wocc[:3, 3] = [0.15, 0.31, occ.half_extents[2]]
+        static_bodies.append(Body(occ, T_cw @ T_wocc, 0, (110.0, 110.0, 110.0), 0.03 * tex))
+        static_discs = [(PlanarTrajectory((0.15, 0.31), (0.15, 0.31), duration, 0.0), occ.radius)]
+        placed = [(trajectories[k], objects[k].radius) for k in (1, 2, 3)]
     for k in objects:
         if k in trajectories:
             continue
