@@ -694,15 +694,16 @@ def _ex08_public(rng):
     return [("hungarian", (C,), {}, _assignment_check(C)) for C in mats]
 
 
-@_test("random matrices 9x9 to 30x30, with ties, rectangular", "test_random", 7.0, hidden=True, timeout=10.0)
+@_test("random matrices 12x12 to 30x30, with ties, rectangular", "test_random", 7.0, hidden=True, timeout=10.0)
 def _ex08_hidden(rng):
     mats = []
     # diagonally dominant (greedy finds it too), then hard ones
-    n = 9
+    # (12! = 4.8e8 permutations: every matrix is out of reach of brute force within the time limit)
+    n = 12
     D = rng.uniform(5.0, 10.0, size=(n, n))
     D[np.arange(n), rng.permutation(n)] = rng.uniform(0.0, 1.0, size=n)
     mats.append(D)
-    mats.append(rng.uniform(0.0, 1.0, size=(10, 10)))
+    mats.append(rng.uniform(0.0, 1.0, size=(13, 13)))
     mats.append(rng.integers(0, 4, size=(12, 12)).astype(np.float64))  # many ties
     mats.append(rng.normal(size=(11, 17)))  # negative costs, wide
     mats.append(rng.integers(0, 3, size=(18, 13)).astype(np.float64))  # tall with ties
