@@ -1,0 +1,66 @@
+"""Run the MATLAB port on GNU Octave against the shared test vectors.
+
+Sources: ``cpp_java_matlab_ports/octave/`` (``kalman_cv2d.m``, ``white_noise_q.m``,
+``projection_jacobian.m``, ``variational_component.m`` and the test script ``run_vectors.m``, which
+reads the vectors with ``jsondecode`` and prints ``CASE`` lines, see :mod:`flowtrack.ports.base`).
+Nothing is compiled; ``build_dir`` is not used.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+from .base import PORTS_DIR, CaseResult, ToolchainMissing, parse_case_lines
+
+__all__ = ["LANGUAGES", "run", "SRC_DIR"]
+
+LANGUAGES: tuple[str, ...] = ("octave",)
+SRC_DIR = PORTS_DIR / "octave"
+
+
+def _octave() -> str:
+    for name in ("octave-cli", "octave"):
+        path = shutil.which(name)
+        if path is not None:
+            return path
+    raise ToolchainMissing("octave not found: install Debian octave")
+
+
+def _quote(path: Path) -> str:
+    return "'" + str(path).replace("'", "''") + "'"
+
+
+def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
+    """Run ``run_vectors.m`` on ``vectors_dir`` with Octave.
+
+    Parameters
+    ----------
+    vectors_dir : Path
+        Directory with the ``<problem>.json`` vector files.
+    build_dir : Path
+        Unused (Octave needs no build); accepted for the common interface.
+
+    Returns
+    -------
+    list of CaseResult
+        One per (problem, case) of ``kalman_cv2d``, ``white_noise_q``, ``projection_jacobian``,
+        ``variational_scene_flow``.
+
+    Raises
+    ------
+    ToolchainMissing
+        Octave is not installed.
+    """
+    octave = _octave()
+    cmd = [octave, "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--no-history"]
+    cmd += ["--path", str(SRC_DIR), "--eval", f"run_vectors({_quote(Path(vectors_dir).resolve())});"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=SRC_DIR)
+    results = parse_case_lines("octave", proc.stdout)
+    if not results:
+        msg = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+        results = [
+            CaseResult("octave", "harness", "-", False, float("nan"), f"exit {proc.returncode}: {msg}")
+        ]
+    return results

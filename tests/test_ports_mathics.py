@@ -1,0 +1,90 @@
+"""The Mathematica port, run on Mathics3, on the shared vectors: one test per problem.
+
+Mathics3 is slow (about 85 ms per filter step), so ``kalman_cv2d`` cases with more than
+``MAX_KALMAN_STEPS`` measurements are not run on it (documented in the port's README); every other
+case is. The port runs once per module; the harness-can-fail test reuses its answers (same inputs)
+and redoes only the comparison, which is what it tests. Also: the ``steady_state_scalar`` vector
+against scipy's DARE solver and the Riccati recursion iterated to convergence.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy.linalg import solve_discrete_are
+
+from flowtrack.ports import lang_mathics
+from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
+from flowtrack.ports.vectors_extra import scalar_riccati_P, steady_state_scalar
+from ports_helpers import failing_cases, perturbed_vectors
+
+pytestmark = pytest.mark.xdist_group("ports-mathics")
+
+BUILD_DIR = PORTS_DIR / "build"
+PROBLEMS = list(lang_mathics.PROBLEMS)
+
+
+def _selected_ids(problem, folder=VECTORS_DIR):
+    doc = json.loads((folder / f"{problem}.json").read_text())
+    return [c["id"] for c in doc["cases"] if lang_mathics.selected(problem, c)]
+
+
+@pytest.fixture(scope="module")
+def mathics_results():
+    try:
+        return lang_mathics.run(VECTORS_DIR, BUILD_DIR)
+    except ToolchainMissing as exc:
+        pytest.fail(f"Mathics3 missing (the ports are never skipped): {exc}")
+
+
+@pytest.mark.parametrize("problem", PROBLEMS)
+def test_port_passes_every_vector_case(mathics_results, problem):
+    got = [r for r in mathics_results if r.problem == problem]
+    assert [r.case_id for r in got] == _selected_ids(problem)
+    failed = [f"{r.case_id}: {r.message} (max error {r.max_error:.3g})" for r in got if not r.passed]
+    assert not failed, "\n".join(failed)
+
+
+def test_only_the_long_kalman_case_is_left_out():
+    doc = json.loads((VECTORS_DIR / "kalman_cv2d.json").read_text())
+    left_out = [c for c in doc["cases"] if not lang_mathics.selected("kalman_cv2d", c)]
+    assert len(left_out) <= 1 and all(len(c["input"]["measurements"]) > 500 for c in left_out)
+    assert "syllabus" in _selected_ids("kalman_cv2d")
+
+
+def test_harness_reports_exactly_the_perturbed_cases(mathics_results, tmp_path):
+    folder, spoilt = perturbed_vectors(tmp_path, PROBLEMS)
+    results = lang_mathics.run(folder, BUILD_DIR, reuse=True)
+    assert failing_cases(results, PROBLEMS) == spoilt
+    assert len(results) == sum(len(_selected_ids(p)) for p in PROBLEMS)
+
+
+def test_steady_state_vector_matches_scipy_dare_and_iteration():
+    for case in steady_state_scalar()["cases"]:
+        inp, exp = case["input"], case["expected"]
+        f, h, q, r = inp["f"], inp["h"], inp["q"], inp["r"]
+        P_dare = solve_discrete_are(np.array([[f]]), np.array([[h]]), np.array([[q]]), np.array([[r]]))[0, 0]
+        assert exp["P"] == pytest.approx(P_dare, rel=1e-9), case["id"]
+        P = 1.0
+        for _ in range(100000):  # the Riccati recursion converges to the same fixed point
+            P_next = f * f * P - (f * P * h) ** 2 / (h * h * P + r) + q
+            if abs(P_next - P) <= 1e-15 * P_next:
+                break
+            P = P_next
+        assert exp["P"] == pytest.approx(P_next, rel=1e-9), case["id"]
+        assert exp["P_post"] == pytest.approx(P - P * P * h * h / (h * h * P + r), rel=1e-9)
+    with pytest.raises(ValueError, match="h"):
+        scalar_riccati_P(1.0, 0.0, 1.0, 1.0)
+    with pytest.raises(TypeError, match="q"):
+        scalar_riccati_P(1.0, 1.0, "1", 1.0)
+
+
+def test_wl_round_trip():
+    x = [[1e-300, -2.5e17, 0.1 + 0.2], [3.0, -0.0, 7]]
+    text = lang_mathics.to_wl(x)
+    assert "*^" in text and "e" not in text.replace("*^", "")
+    assert lang_mathics.parse_input_form(text) == [[1e-300, -2.5e17, 0.30000000000000004], [3.0, -0.0, 7.0]]
+    with pytest.raises(TypeError, match="value"):
+        lang_mathics.to_wl(["a"])

@@ -1,0 +1,52 @@
+"""The MATLAB port, run on GNU Octave, on the shared vectors: one test per problem.
+
+A missing ``octave`` fails these tests with the Debian package to install (never a skip).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from flowtrack.ports import lang_octave
+from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
+from ports_helpers import failing_cases, perturbed_vectors, vector_case_ids
+
+pytestmark = pytest.mark.xdist_group("ports-octave")
+
+BUILD_DIR = PORTS_DIR / "build"
+PROBLEMS = ["kalman_cv2d", "white_noise_q", "projection_jacobian", "variational_scene_flow"]
+
+
+@pytest.fixture(scope="module")
+def octave_results():
+    try:
+        return lang_octave.run(VECTORS_DIR, BUILD_DIR)
+    except ToolchainMissing as exc:
+        pytest.fail(f"Octave missing (the ports are never skipped): {exc}")
+
+
+@pytest.mark.parametrize("problem", PROBLEMS)
+def test_port_passes_every_vector_case(octave_results, problem):
+    got = [r for r in octave_results if r.problem == problem]
+    assert [r.case_id for r in got] == vector_case_ids(problem)
+    failed = [f"{r.case_id}: {r.message} (max error {r.max_error:.3g})" for r in got if not r.passed]
+    assert not failed, "\n".join(failed)
+
+
+def test_harness_reports_exactly_the_perturbed_cases(octave_results, tmp_path):
+    folder, spoilt = perturbed_vectors(tmp_path, PROBLEMS)
+    results = lang_octave.run(folder, tmp_path)
+    assert failing_cases(results, PROBLEMS) == spoilt
+    assert len(results) == sum(len(vector_case_ids(p)) for p in PROBLEMS)
+
+
+def test_missing_vector_file_fails(octave_results, tmp_path):
+    results = lang_octave.run(tmp_path, tmp_path)
+    assert {r.problem for r in results} == set(PROBLEMS)
+    assert not any(r.passed for r in results)
+
+
+def test_missing_octave_is_reported_not_skipped(monkeypatch, tmp_path):
+    monkeypatch.setattr(lang_octave.shutil, "which", lambda name: None)
+    with pytest.raises(ToolchainMissing, match="octave"):
+        lang_octave.run(VECTORS_DIR, tmp_path)
