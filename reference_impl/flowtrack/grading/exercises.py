@@ -694,7 +694,9 @@ def _ex08_public(rng):
     return [("hungarian", (C,), {}, _assignment_check(C)) for C in mats]
 
 
-@_test("random matrices 12x12 to 30x30, with ties, rectangular", "test_random", 7.0, hidden=True, timeout=10.0)
+@_test(
+    "random matrices 12x12 to 30x30, with ties, rectangular", "test_random", 7.0, hidden=True, timeout=10.0
+)
 def _ex08_hidden(rng):
     mats = []
     # diagonally dominant (greedy finds it too), then hard ones

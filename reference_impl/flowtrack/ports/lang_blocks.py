@@ -216,6 +216,7 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
                 bad = np.argwhere(~(err <= atol + rtol * np.abs(e)))
                 if len(bad) and ok:
                     i = tuple(bad[0])
-                    ok, msg = False, f"{key}{list(i)}: got {got[i]!r}, expected {e[i]!r}"
+                    where = [int(j) for j in i]
+                    ok, msg = False, f"{key}{where}: got {float(got[i])!r}, expected {float(e[i])!r}"
             results.append(CaseResult("blocks", problem, case["id"], ok, worst, msg))
     return results
