@@ -136,7 +136,7 @@ def main(argv=None) -> int:
     ft_per, nb_per = ft_wall / n, nb_wall / n_nb
     ratio = nb_per / ft_per
     rows = [
-        "# Grading benchmark",
+        "## Autograder (`flowtrack grade`)",
         "",
         f"{n} synthetic students x {len(EXERCISES)} exercises ({max_total:g} points; a third solutions, "
         "a third stubs, a third partial). flowtrack: `flowtrack grade --jobs 2`, one sandboxed child per "
