@@ -110,9 +110,10 @@ def _relpath(target: Path, start: Path) -> str:
 @pytest.mark.xdist_group("book")
 def test_every_book_page_in_headless_chromium(book, tmp_path):
     shots = tmp_path / "screenshots"
-    problems = check_pages(book.pages, shots)
+    pages = [*book.pages, book.out / "genindex.html", book.out / "search.html"]  # Sphinx's own pages too
+    problems = check_pages(pages, shots)
     assert not problems, "\n".join(problems)
-    assert len(list(shots.glob("*.png"))) == len(book.pages)
+    assert len(list(shots.glob("*.png"))) == len(pages)
 
 
 # ----------------------------------------------------------------------------------------------------

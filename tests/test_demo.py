@@ -3,6 +3,7 @@
 import base64
 import io
 import json
+import shutil
 from html.parser import HTMLParser
 
 import numpy as np
@@ -132,6 +133,38 @@ def test_demo_rejects_bad_options(tmp_path, capsys):
     assert "--predict-ahead" in capsys.readouterr().err
     assert main(["demo", "--out", str(tmp_path), "--objects", "2", "--no-progress"]) == 2
     assert "n_objects" in capsys.readouterr().err
+    assert main(["demo", "--out", str(tmp_path), "--objects", "12", "--frames", "2", "--no-progress"]) == 2
+    assert "n_objects=12 does not fit" in capsys.readouterr().err
+    assert main(["demo", "--out", str(tmp_path), "--seed", "-1", "--no-progress"]) == 2
+    assert "seed" in capsys.readouterr().err
+    (tmp_path / "a_file").write_text("x")
+    assert main(["demo", "--out", str(tmp_path / "a_file"), "--no-progress"]) == 2
+    assert "out must be a folder" in capsys.readouterr().err
+
+
+def test_full_report_opens_offline_in_headless_chromium(demo_out, tmp_path):
+    """The report with every section (Motorcycle, TUD-Campus), alone in a folder, in a real browser."""
+    from browser import check_pages
+
+    alone = tmp_path / "alone" / "report.html"
+    alone.parent.mkdir()
+    shutil.copy(demo_out / "report.html", alone)
+    problems = check_pages([alone], tmp_path / "shots")
+    assert not problems, "\n".join(problems)
+    assert len(list((tmp_path / "shots").glob("*.png"))) == 1
+
+
+def test_cluster_colours_follow_the_largest_overlap():
+    from flowtrack.demo import _cluster_colours
+
+    truth = np.array([0, 1, 1, 1, 2, 2, 0, 3, 3])
+    clusters = np.array([-1, 5, 5, 0, 0, 0, 2, 2, -1])  # 5 ~ object 1, 0 ~ object 2, 2 ~ object 3
+    assert _cluster_colours(clusters, truth) == {0: 2, 2: 3, 5: 1}
+    # two clusters on one object: the larger keeps its colour, the other a free one (not 1..3)
+    clusters = np.array([-1, 4, 4, 7, -1, -1, -1, -1, -1])
+    got = _cluster_colours(clusters, truth)
+    assert got[4] == 1 and got[7] not in (0, 1, 2, 3)
+    assert _cluster_colours(np.array([0, 1, -1]), None) == {0: 1, 1: 2}
 
 
 def test_mixed_scenario_has_an_occlusion_and_a_crossing():

@@ -446,28 +446,85 @@ def _plot_flow_field(inp: _Input, pair: FlowPair, path: Path) -> None:
     plt.close(fig)
 
 
-def _plot_clusters(pair: FlowPair, path: Path) -> None:
+def _cluster_colours(clusters, truth) -> dict[int, int]:
+    """Colour index of each motion cluster: the true object it overlaps most (one cluster per object,
+    by the assignment of largest overlap), other clusters the next free colours."""
+    from scipy.optimize import linear_sum_assignment
+
+    ids = [int(c) for c in np.unique(clusters) if c >= 0]
+    colours: dict[int, int] = {}
+    if truth is not None and ids:
+        objs = [int(k) for k in np.unique(truth) if k > 0]
+        if objs:
+            overlap = np.array([[np.count_nonzero((clusters == c) & (truth == k)) for k in objs]
+                                for c in ids])
+            r, c = linear_sum_assignment(-overlap)
+            colours = {ids[i]: objs[j] for i, j in zip(r, c) if overlap[i, j] > 0}
+    free = (k for k in range(1, 10_000) if k not in colours.values() and (truth is None or k not in truth))
+    for c in ids:
+        if c not in colours:
+            colours[c] = next(free)
+    return colours
+
+
+def _plot_clusters(inp: _Input, pair: FlowPair, path: Path) -> None:
+    """The cloud of one frame pair coloured by motion cluster, beside the true objects.
+
+    Synthetic input is drawn in table coordinates (z up); each cluster gets the colour of the true
+    object it overlaps most, so that matching colours mean a correct segmentation.
+    """
     plt = _plt()
+    import matplotlib
+    from matplotlib.ticker import MaxNLocator
+
+    tab = matplotlib.colormaps["tab10"]
     panels = [("motion clusters (estimated)", pair.clusters)]
     if pair.labels_gt is not None:
         panels.append(("ground-truth objects", pair.labels_gt))
+    if inp.scene is not None:
+        T = np.asarray(inp.scene.camera_pose)
+        W = pair.points @ T[:3, :3].T + T[:3, 3]
+        axis_names = ("table x (m)", "table y (m)", "height (m)")
+    else:
+        W = pair.points[:, [0, 2, 1]] * np.array([1.0, 1.0, -1.0])
+        axis_names = ("X (m)", "Z, depth (m)", "−Y (m)")
+    colours = _cluster_colours(pair.clusters, pair.labels_gt)
     fig = plt.figure(figsize=(5.5 * len(panels), 5), constrained_layout=True)
+    # zoom to the moving points (either panel) with a 10 cm margin, at equal scale on every axis
+    moving = pair.clusters >= 0
+    if pair.labels_gt is not None:
+        moving |= pair.labels_gt > 0
+    box = W[moving] if moving.any() else W
+    lo = np.maximum(box.min(axis=0) - 0.1, W.min(axis=0))
+    hi = np.minimum(box.max(axis=0) + 0.1, W.max(axis=0))
+    inside = np.all((W >= lo) & (W <= hi), axis=1)
     rng = np.random.default_rng(1)
-    sel = rng.permutation(len(pair.points))[:8000]
-    P = pair.points[sel]
+    sel = np.flatnonzero(inside)
+    sel = sel[rng.permutation(len(sel))[:8000]]
+    P = W[sel]
     for i, (title, lab_all) in enumerate(panels):
         lab = lab_all[sel]
         ax = fig.add_subplot(1, len(panels), i + 1, projection="3d")
+        ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), zlim=(lo[2], hi[2]))
+        ax.set_box_aspect(np.maximum(hi - lo, 1e-3))
+        for a in (ax.xaxis, ax.yaxis, ax.zaxis):
+            a.set_major_locator(MaxNLocator(4))
         static = lab <= 0 if i == 1 else lab < 0
-        ax.scatter(P[static, 0], P[static, 2], -P[static, 1], s=1, c="0.8", alpha=0.3)
-        ax.scatter(P[~static, 0], P[~static, 2], -P[~static, 1], s=2, c=lab[~static], cmap="tab10",
-                   vmin=0, vmax=9)
-        ax.set_xlabel("X (m)")
-        ax.set_ylabel("Z (m)")
-        ax.set_zlabel("−Y (m)")
+        ax.scatter(*P[static].T, s=1, c="0.75", alpha=0.25, depthshade=False)
+        if i == 0:
+            cols = [tab(colours[int(c)] % 10) for c in lab[~static]]
+        else:
+            cols = [tab(int(c) % 10) for c in lab[~static]]
+        ax.scatter(*P[~static].T, s=3, c=cols, depthshade=False)
+        ax.set_xlabel(axis_names[0])
+        ax.set_ylabel(axis_names[1])
+        ax.set_zlabel(axis_names[2])
         ax.set_title(title)
-        ax.view_init(elev=25, azim=-70)
-    fig.savefig(path, dpi=100)
+        if inp.scene is not None:
+            ax.view_init(elev=35, azim=-60)
+        else:
+            ax.view_init(elev=25, azim=-70)
+    fig.savefig(path, dpi=100, bbox_inches="tight", pad_inches=0.25)  # 3-D labels stick out
     plt.close(fig)
 
 
@@ -575,7 +632,7 @@ def _write_gif(inp, snapshots, path: Path) -> None:
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     H, W = inp.rgb[0].shape[:2]
-    scale = 320.0 / W
+    scale = 480.0 / W  # 480 px wide: track labels and ellipses stay readable
     fig = plt.figure(figsize=(W * scale / 80, H * scale / 80), dpi=80)
     ax = fig.add_axes([0, 0, 1, 1])
     trails: dict[int, list] = {}
@@ -589,11 +646,11 @@ def _write_gif(inp, snapshots, path: Path) -> None:
             trails.setdefault(tid, []).append(uv)
             tr = np.array(trails[tid][-15:])
             c = _color(tid)
-            ax.plot(tr[:, 0], tr[:, 1], "-", color=c, lw=1.5)
-            _ellipse(ax, uv, _image_cov(pos, P, inp.camera), color=c, lw=1.2,
+            ax.plot(tr[:, 0], tr[:, 1], "-", color=c, lw=2.2)
+            _ellipse(ax, uv, _image_cov(pos, P, inp.camera), color=c, lw=1.8,
                      ls="--" if status == "coasting" else "-")
-            ax.text(uv[0] + 4, uv[1] - 4, str(tid), color=c, fontsize=9, weight="bold")
-        ax.text(3, 12 / scale, f"frame {t}", color="w", fontsize=8)
+            ax.text(uv[0] + 4, uv[1] - 4, str(tid), color=c, fontsize=11, weight="bold")
+        ax.text(3, 12 / scale, f"frame {t}", color="w", fontsize=10)
         ax.set_xlim(-0.5, W - 0.5)
         ax.set_ylim(H - 0.5, -0.5)
 
@@ -614,8 +671,11 @@ def _load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict
         if n_objects < need:
             raise ValueError(f"n_objects must be >= {need} for scenario {scenario!r}, got {n_objects}")
         total = max(n_frames + predict_ahead, MIN_LAYOUT_FRAMES if scenario == "mixed" else 0)
-        scene = make_scene(n_objects=n_objects, n_frames=total, image_size=image_size, dt=0.1, noise=noise,
-                           seed=seed, scenario=scenario)
+        try:
+            scene = make_scene(n_objects=n_objects, n_frames=total, image_size=image_size, dt=0.1,
+                               noise=noise, seed=seed, scenario=scenario)
+        except RuntimeError as exc:  # no collision-free layout: too many objects for the table
+            raise ValueError(f"n_objects={n_objects} does not fit on the table: {exc}") from exc
         return _Input(f"synthetic scene ({scenario})", scene.camera, scene.dt, [f.rgb for f in scene.frames],
                       [f.depth for f in scene.frames], n_frames, scene)
     from .rgbd_io import load_stereo_sequence, load_tum_sequence
@@ -680,10 +740,14 @@ def run_demo(
     if (isinstance(predict_ahead, bool) or not isinstance(predict_ahead, (int, np.integer))
             or predict_ahead < 1):
         raise ValueError(f"predict_ahead must be an int >= 1, got {predict_ahead}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out must be a folder, got the file {out}")
     started = time.perf_counter()
     inp = _load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict_ahead, scenario,
                       input_options)
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scene, cam, dt = inp.scene, inp.camera, inp.dt
     rng = np.random.default_rng(seed)
@@ -790,6 +854,7 @@ def run_demo(
         summary["scene_flow"] = None
         summary["tracking"] = None
     summary["tracks"] = {str(tid): len(rows) for tid, rows in hist.items()}
+    summary["predict_ahead"] = predict_ahead
     summary["prediction"] = preds
     scored = [p for p in preds if "error" in p]
     if scored:
@@ -801,7 +866,7 @@ def run_demo(
     # figures
     figures = {name: out / f"{name}.png" for name in ("flow_field", "clusters_3d", "trajectories")}
     _plot_flow_field(inp, pairs[0], figures["flow_field"])
-    _plot_clusters(pairs[0], figures["clusters_3d"])
+    _plot_clusters(inp, pairs[0], figures["clusters_3d"])
     _plot_trajectories(inp, hist, gt_hist, preds, figures["trajectories"])
     if gif:
         figures["tracks"] = out / "tracks.gif"
@@ -869,7 +934,7 @@ def _tracking_table(tr: dict) -> Table:
                  digits=[3, 1, 3, None, None, None, None])
 
 
-def _prediction_table(preds: list, has_truth: bool) -> Table:
+def _prediction_table(preds: list, has_truth: bool, ahead: int) -> Table:
     def mm(v):
         return None if v is None else 1000.0 * v
 
@@ -886,7 +951,6 @@ def _prediction_table(preds: list, has_truth: bool) -> Table:
     if has_truth:
         header += ["object", "error (mm)", "constant-position error (mm)", "Mahalanobis"]
         digits += [None, 1, 1, 2]
-    ahead = preds[0]["ahead"] if preds else 0
     cap = (f"Each track predicted {ahead} frames ahead with the tracker's constant-velocity Kalman "
            "filter and no updates (camera coordinates).")
     if has_truth:
@@ -926,7 +990,12 @@ def _sections(inp, summary, figures, real, tud) -> list[Section]:
     secs.append(s)
     s = Section("Scene flow", figures=[
         Figure(figures["flow_field"], "Scene flow of the first frame pair as image-plane arrows."),
-        Figure(figures["clusters_3d"], "The cloud coloured by motion cluster (grey: static)."),
+        Figure(figures["clusters_3d"], "The first frame pair's cloud coloured by motion cluster (grey: "
+               "static), each cluster in the colour of the true object it overlaps most. Graph "
+               "smoothing leaks motion into the table, which can join objects; detection removes "
+               "the support planes before tracking."
+               if inp.scene is not None else
+               "The first frame pair's cloud coloured by motion cluster (grey: static)."),
     ])
     if summary["scene_flow"] is not None:
         s.tables.append(_flow_table(summary["scene_flow"]))
@@ -951,7 +1020,7 @@ def _sections(inp, summary, figures, real, tud) -> list[Section]:
         s.tables.append(_tracking_table(summary["tracking"]))
     else:
         s.note = nog + " Tracks and predictions are still drawn."
-    s.tables.append(_prediction_table(summary["prediction"], scene is not None))
+    s.tables.append(_prediction_table(summary["prediction"], scene is not None, summary["predict_ahead"]))
     if "prediction_mean_error_m" in summary:
         s.paragraphs.append(
             f"Mean prediction error {1000 * summary['prediction_mean_error_m']:.1f} mm "
@@ -1000,7 +1069,7 @@ def _echo_summary(echo, inp, summary, sections, out) -> None:
              f"ID switches {tr['id_switches']}, FP {tr['fp']}, FN {tr['fn']}")
     else:
         echo("no ground truth for this input: scene-flow and tracking metrics are not computed")
-    n_ahead = summary["prediction"][0]["ahead"] if summary["prediction"] else 0
+    n_ahead = summary["predict_ahead"]
     line = f"prediction {n_ahead} frames ahead: {len(summary['prediction'])} tracks"
     if "prediction_mean_error_m" in summary:
         line += (f", mean error {1000 * summary['prediction_mean_error_m']:.1f} mm (constant position "
