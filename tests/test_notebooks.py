@@ -86,6 +86,25 @@ def test_lesson_contains_a_sympy_derivation(path):
     )
 
 
+SOLUTIONS = _notebooks("solutions")
+
+
+def test_problems_1_to_5_have_a_solution_notebook():
+    names = [p.name for p in SOLUTIONS]
+    for n in range(1, 6):
+        assert any(name.startswith(f"problem{n}_") for name in names), f"no solution notebook for Problem {n}"
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=_ids(SOLUTIONS))
+def test_solution_derives_in_sympy_and_checks_numerically(path):
+    code = _code(path)
+    assert _SYMPY_IMPORT.search(code), f"{path.name}: no code cell imports sympy"
+    assert "lambdify" in code, f"{path.name}: the derivation is never turned into numbers"
+    assert re.search(r"^\s*(assert\b|np\.testing\.assert_)", code, re.MULTILINE), (
+        f"{path.name}: no assertion checks the derivation numerically"
+    )
+
+
 def test_no_ipynb_with_outputs():
     bad = []
     for d in IPYNB_DIRS:

@@ -39,5 +39,9 @@ kalmanCV2D[dt_, processVar_, measVar_, x0_, P0_, zs_] := Module[
     S = H.PPred.HT + R;
     K = PPred.HT.Inverse[S];
     {xPred + K.y, (I4 - K.H).PPred}];
-  result = Rest[kalmanFoldList[kalmanStep, {x0, P0}, zs]];
+  (* Mathics3 counts *every* symbol rewrite of a whole top-level evaluation against $IterationLimit
+     (default 4096) instead of the length of one rewrite chain as Mathematica does, so a long
+     measurement list (about 300 steps and more) ends in an $IterationLimit abort. Lifting the limit
+     for the fold is harmless: the fold is a finite loop. Mathematica does not need the Block. *)
+  result = Block[{$IterationLimit = Infinity}, Rest[kalmanFoldList[kalmanStep, {x0, P0}, zs]]];
   {result[[All, 1, {1, 2}]], result[[-1, 2]]}]
