@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
-from flowtrack.grading.spec import Call, compare_arrays
+from flowtrack.grading.spec import Call, Outcome, compare_arrays
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -326,3 +326,213 @@ def add(a, b):
 """
     score, outcomes = grade(cell, blocked=["scipy.optimize"])
     assert score == 1.0, [o.value if o.ok else o.error for o in outcomes]
+
+
+# --------------------------------------------------------------------------------------------------
+# Attacks beyond the issue's list: the machine itself, the reply channel, cleanup, comparisons.
+
+
+def test_filling_the_disk_or_the_ram_is_stopped(mode):
+    # 20 MB in the student's directory (over a 4 MiB disk limit) and, under bubblewrap, attempts on
+    # bubblewrap's own tmpfs mounts (RAM no rlimit covers): the root, /dev, /dev/shm.
+    limits = Limits(cpu_seconds=3, wall_seconds=5, memory_bytes=1 << 30, processes=16,
+                    disk_bytes=4 << 20)
+    cell = """
+import os, tempfile, time
+def fill(where):
+    d = tempfile.gettempdir() if where == "tmp" else where
+    for i in range(20):
+        with open(os.path.join(d, f"f{i}"), "wb") as f:
+            f.write(b"x" * (1 << 20))
+    time.sleep(3)  # the grader measures while it waits
+    return 1
+def ram():
+    ok = []
+    for d in ("/", "/dev", "/dev/shm", "/opt", "/home"):
+        try:
+            open(d + "/x", "wb").close()
+            ok.append(d)
+        except OSError:
+            pass
+    return ok
+"""
+    for where in ("tmp", "."):
+        with Sandbox([("a", cell)], limits=limits) as sb:
+            (out,) = sb.run([Call("fill", (where,))], timeout=5)
+            assert not out.ok and "disk limit" in out.error, (where, out)
+            (again,) = sb.run([Call("ram")], timeout=10)  # a fresh child, other tests go on
+            assert again.ok
+            if mode == "bwrap":
+                assert again.value == [], again.value
+
+
+def test_forged_replies_on_the_reply_channel(mode):
+    # The student finds the reply pipe and writes raw frames: deeply nested JSON, a 100000-digit
+    # integer, a frame that never completes (slow drip). Each fails the call; nothing hangs.
+    frames = {
+        "nested": "b'[' * 100000 + b']' * 100000",
+        "bigint": "b'{\"ok\": true, \"value\": ' + b'9' * 100000 + b'}'",
+    }
+    for name, payload in [*frames.items(), ("drip", None)]:
+        if payload is None:
+            body = ("    os.write(fd, struct.pack('>I', 100))\n"
+                    "    for _ in range(100):\n        os.write(fd, b' ')\n        time.sleep(0.3)\n")
+        else:
+            body = f"    d = {payload}\n    os.write(fd, struct.pack('>I', len(d)) + d)\n"
+        find_pipe = (
+            "import os, struct, time\ndef add(a, b):\n"
+            "    fd = next(f for f in range(3, 40) if 'pipe' in os.path.realpath(f'/proc/self/fd/{f}'))\n"
+        )
+        cell = find_pipe + body + "    return 0\n"
+        score, outcomes = grade(cell, timeout=2)
+        assert score == 0.0 and not outcomes[0].ok, (name, outcomes[0])
+        # the forged frame did reach the grader (not, say, a failure to find the pipe)
+        assert ("timed out" if name == "drip" else "not valid data") in outcomes[0].error, outcomes[0]
+
+
+def test_a_grandchild_holding_the_reply_pipe_dies_with_the_sandbox(bwrap_only):
+    cell = """
+import os, time
+def add(a, b):
+    if os.fork() == 0:
+        os.setsid()
+        if os.fork() == 0:
+            time.sleep(1000)  # keeps the reply pipe open
+        os._exit(0)
+    os._exit(0)
+"""
+    with Sandbox([("a", "import numpy as np\n" + cell + HONEST_MUL)], limits=LIMITS) as sb:
+        (out,) = sb.run([Call("add", (1.0, 2.0))], timeout=5)
+        uid = sb._uid
+        assert not out.ok
+        x = np.arange(3.0)
+        assert compare_arrays(sb.run([Call("mul", (x, 2.0))], timeout=10)[0], 2 * x)[0]
+    if uid is not None:  # grading as root: a per-sandbox uid, so we can look for survivors
+        from flowtrack.grading.sandbox import _uid_has_processes
+
+        assert not _uid_has_processes(uid)
+
+
+def test_signals_and_ctypes_cannot_reach_the_grader(mode):
+    cell = """
+import ctypes, os, signal
+def add(a, b):
+    for target in (os.getppid(), -1, 1):
+        try:
+            os.kill(target, signal.SIGKILL)
+        except (OSError, PermissionError):
+            pass
+    if MODE == "bwrap":  # ctypes goes around any in-process hook; only the namespaces stop it
+        libc = ctypes.CDLL(None)
+        libc.kill(os.getppid(), 9)
+        libc.kill(-1, 9)
+    return np.zeros((4, 3))
+"""
+    score, _ = grade(f"MODE = {mode!r}\n" + cell)
+    assert score == 0.0  # and we are still here: grade() ran a later call successfully
+
+
+def test_students_cannot_see_each_others_directories(mode):
+    if mode == "fallback" and os.geteuid() != 0:
+        pytest.skip("the fallback as an ordinary user runs every student as that user")
+    writer = "def add():\n    open('answer.txt', 'w').write('SECRET')\n    return 1\n"
+    with Sandbox([("a", writer)], limits=LIMITS) as a:
+        assert a.run([Call("add")], timeout=10)[0].ok
+        secret = a._workdir / "home" / "answer.txt"
+        assert secret.read_text() == "SECRET"
+        reader = f"def add():\n    return open({str(secret)!r}).read()\n"
+        with Sandbox([("b", reader)], limits=LIMITS) as b:
+            (out,) = b.run([Call("add")], timeout=10)
+        assert not out.ok, out.value
+
+
+def test_cleanup_does_not_chmod_through_planted_symlinks():
+    # A read-only directory holding a symlink to a file of the grader makes the first unlink fail
+    # (for a non-root grader); the clean-up then must not chmod the symlink's target.
+    import shutil
+    import tempfile
+
+    from flowtrack.grading.sandbox import _rmtree
+
+    tmp_path = Path(tempfile.mkdtemp(prefix="ft-rmtree-"))  # traversable by the uid used below
+    try:
+        _check_cleanup(tmp_path, _rmtree)
+    finally:
+        shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def _check_cleanup(tmp_path, _rmtree):
+    target = tmp_path / "grader_secret"
+    target.write_text("x")
+    target.chmod(0o600)
+    work = tmp_path / "work"
+    (work / "d").mkdir(parents=True)
+    (work / "d" / "link").symlink_to(target)
+    (work / "d").chmod(0o500)
+    uid = 65534 if os.geteuid() == 0 else None
+    if uid is not None:  # root ignores the read-only directory; act as an ordinary user
+        for p in (tmp_path, work, work / "d"):
+            os.chown(p, uid, uid)
+        os.lchown(work / "d" / "link", uid, uid)
+        os.chown(target, uid, uid)
+        os.chmod(tmp_path, 0o755)
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - child
+        code = 1
+        try:
+            if uid is not None:
+                os.setresgid(uid, uid, uid)
+                os.setresuid(uid, uid, uid)
+            _rmtree(work)
+            code = 0
+        finally:
+            os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert not work.exists()
+    assert target.stat().st_mode & 0o777 == 0o600
+
+
+@pytest.mark.parametrize("value, ok", [
+    ([1.0, float("inf"), float("nan")], True),
+    ([1.0, float("nan"), float("nan")], False),  # NaN where the reference gates (inf)
+    ([1.0, -float("inf"), float("nan")], False),
+    ([1.0, float("inf"), float("inf")], False),
+    ([1.0, float("inf"), 0.0], False),
+    ([2 ** 70, float("inf"), float("nan")], False),  # huge integers are numbers, just wrong ones
+    ([2 ** 2000, float("inf"), float("nan")], False),  # beyond float64: not a number array
+    ([True, float("inf"), float("nan")], True),  # bool is a number in JSON's sense (1.0)
+])
+def test_compare_non_finite_and_huge_values(value, ok):
+    expected = np.array([1.0, np.inf, np.nan])
+    assert compare_arrays(Outcome(True, value), expected)[0] is ok
+
+
+def test_writing_into_the_sandbox_caches_or_the_runtime(mode):
+    # The filtered flowtrack copy, the runner, the Python runtime (or its mirror) and numpy are
+    # shared by every later student: none of them may be changed from inside.
+    from flowtrack.grading import sandbox as sbmod
+
+    cache = sbmod._cache_root()
+    before = _snapshot(cache / "ft") | _snapshot(cache / "bin")
+    cell = """
+import os, sys, flowtrack, numpy
+def add(a, b):
+    wrote = []
+    dirs = [os.path.dirname(flowtrack.__file__), os.path.dirname(os.__file__),
+            os.path.dirname(numpy.__file__), os.path.dirname(os.path.abspath(sys.argv[0]))]
+    for d in dirs:
+        for name in ("__init__.py", "evil.py", "_child.py"):
+            try:
+                with open(os.path.join(d, name), "a") as f:
+                    f.write("\\nraise SystemExit")
+                wrote.append(os.path.join(d, name))
+            except OSError:
+                pass
+    if wrote:
+        raise RuntimeError("WROTE " + repr(wrote))
+    return np.asarray(a) + b
+"""
+    score, outcomes = grade(cell)
+    assert score == 1.0, [o.error for o in outcomes]
+    assert _snapshot(cache / "ft") | _snapshot(cache / "bin") == before

@@ -145,6 +145,27 @@ def test_release_refuses_to_overwrite_a_foreign_folder(tmp_path):
     assert (tmp_path / "keep.txt").read_text() == "mine"
 
 
+def test_release_never_replaces_the_course_or_its_sources(tmp_path):
+    # `flowtrack release --out . --force` from the course folder must not delete the course.
+    course = tmp_path / "course"
+    for d in ("exercises", "lessons", "solutions"):
+        (course / d).mkdir(parents=True)
+        (course / d / "keep.md").write_text("mine")
+    for out in (course, tmp_path, course / "exercises", course / "solutions" / "bundle"):
+        with pytest.raises(ValueError, match="out"):
+            release(out, source=course, force=True)
+    assert all((course / d / "keep.md").read_text() == "mine" for d in ("exercises", "lessons", "solutions"))
+
+
+def test_release_has_no_dead_links_into_solutions(bundle):
+    out, _ = bundle
+    src = "".join(p.read_text(encoding="utf-8") for p in (ROOT / "lessons").glob("*.md"))
+    assert "](../solutions/" in src  # the lessons do link there: the check below has teeth
+    for p in out.rglob("*"):
+        if p.is_file():
+            assert "](../solutions/" not in p.read_text(encoding="utf-8"), p
+
+
 # --------------------------------------------------------------------------------------------------
 # check
 
@@ -471,7 +492,12 @@ def test_gradescope_zip_runs_the_same_grader(tmp_path):
     assert {"setup.sh", "run_autograder", "flowtrack/pyproject.toml"} <= set(names)
     assert modes["setup.sh"] & stat.S_IXUSR and modes["run_autograder"] & stat.S_IXUSR
     assert not any(n.startswith(("exercises/", "solutions/")) or "/exercises/" in n for n in names)
-    assert "bubblewrap" in (unpacked / "setup.sh").read_text()
+    setup = (unpacked / "setup.sh").read_text()
+    assert "bubblewrap" in setup
+    # student code runs as an unprivileged uid: it must be able to read the venv (numpy)
+    assert "chmod -R a+rX /autograder/venv" in setup
+    for script in ("setup.sh", "run_autograder"):
+        subprocess.run(["bash", "-n", str(unpacked / script)], check=True)  # valid bash
     # a fake /autograder: the grader comes from the zip's source tree, not from this checkout
     ag = tmp_path / "autograder"
     for ex in SUBSET:
@@ -494,3 +520,57 @@ def test_gradescope_zip_runs_the_same_grader(tmp_path):
     assert data["score"] == pytest.approx(sum(ex.max_score for ex in SUBSET))
     assert all(t["status"] == "passed" for t in data["tests"])
     assert data["extra_data"]["flowtrack"]["student"] == "12345"
+
+
+def test_a_submitted_link_leading_outside_the_submission_is_not_read(tmp_path):
+    # bob's "notebook" is a link to alice's (or to a file of the grading machine): never graded as
+    # his; a link inside his own folder is fine.
+    from flowtrack.grading.grade import locate_notebook
+
+    ex = get_exercise("ex02_optical_flow")
+    alice, bob, carol = (tmp_path / n for n in ("alice", "bob", "carol"))
+    for d in (alice, bob, carol):
+        d.mkdir()
+    shutil.copy(EXDIR / ex.notebook, alice / ex.notebook)
+    (bob / ex.notebook).symlink_to(alice / ex.notebook)
+    (bob / "sub").mkdir()
+    (bob / "sub" / ex.notebook).symlink_to("/etc/hostname")
+    (carol / "real.ipynb").write_text("{}")
+    (carol / ex.notebook).symlink_to(carol / "real.ipynb")
+    assert locate_notebook(alice, ex) == alice / ex.notebook
+    found = locate_notebook(bob, ex)
+    assert not found.exists() and "outside" in found.name
+    assert locate_notebook(carol, ex) == carol / ex.notebook
+
+
+def test_hidden_inputs_cannot_leak_through_a_later_public_test(tmp_path):
+    # The student's function remembers every input and raises them in its next call: a public test
+    # run after a hidden one would show the hidden inputs in its message.
+    from flowtrack.grading.grade import run_exercise
+    from flowtrack.grading.spec import Call, Exercise, GradedTest
+
+    def build(values):
+        def b(rng):
+            x = [float(v) for v in (values if values is not None else rng.normal(size=3) + 1000.0)]
+            calls = [Call("f", (x,))]
+            return calls, lambda outs: ((1.0, "ok") if outs[0].ok else (0.0, outs[0].error))
+        return b
+
+    tests = tuple(
+        GradedTest(name, "t", 1.0, hidden, build(None if hidden else [1.0, 2.0, 3.0]))
+        for name, hidden in (("public 1", False), ("hidden 1", True), ("public 2", False), ("hidden 2", True))
+    )
+    ex = Exercise("leak", "leak", "leak.ipynb", ("answer",), (), tests)
+    nb = nbformat.v4.new_notebook()
+    cell = nbformat.v4.new_code_cell(
+        "SEEN = []\ndef f(x):\n    SEEN.append(list(x))\n    if len(SEEN) > 1:\n"
+        "        raise ValueError(repr(SEEN))\n    return 0\n"
+    )
+    cell.metadata["nbgrader"] = {"grade_id": "answer", "solution": True, "grade": False, "locked": False}
+    nb.cells.append(cell)
+    _write(nb, tmp_path / "leak.ipynb")
+    result = run_exercise(ex, tmp_path / "leak.ipynb", "alice")
+    assert [t.name for t in result.tests] == ["public 1", "hidden 1", "public 2", "hidden 2"]
+    shown = " ".join(t.message for t in result.tests if not t.hidden) + " ".join(result.problems)
+    assert "[1.0, 2.0, 3.0]" in shown  # the leak channel works for public inputs ...
+    assert "100" not in shown  # ... but no hidden input (all near 1000) ever reaches a shown message

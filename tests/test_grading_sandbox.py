@@ -272,3 +272,46 @@ def ident():
     assert "work" not in root
     if os.geteuid() == 0:  # the grader is root: the child must not be
         assert sb._uid is None or sb._uid >= 1_600_000_000
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="only root hands the sandbox to another uid")
+def test_root_with_a_private_tmpdir_still_grades(tmp_path, monkeypatch):
+    # A fresh machine where root's TMPDIR is private (e.g. /root/tmp, mode 700): the sandbox's
+    # unprivileged uid must still reach its cache and its directory.
+    import tempfile
+
+    from flowtrack.grading import sandbox as sbmod
+
+    private = tmp_path / "private"
+    private.mkdir(mode=0o700)
+    monkeypatch.delenv("FLOWTRACK_SANDBOX_CACHE", raising=False)
+    monkeypatch.setattr(tempfile, "tempdir", str(private))
+    root = sbmod._cache_root()
+    assert not root.is_relative_to(private) and sbmod._world_readable(root / "work", read=False)
+    with Sandbox([("a", "def f(x):\n    return x + 1\n")], limits=FAST) as sb:
+        assert sb.run([Call("f", (1,))], timeout=20)[0].value == 2
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="only root hands the sandbox to another uid")
+def test_root_with_a_private_venv_still_grades(tmp_path, monkeypatch):
+    # A fresh clone under /root (mode 700) with its .venv there: the unprivileged uid cannot read
+    # those packages, so the sandbox gets a world-readable mirror of them (without flowtrack).
+    from flowtrack.grading import sandbox as sbmod
+
+    real = sbmod._site_dirs()
+    private = tmp_path / "venv" / "site-packages"
+    (private / "mypkg").mkdir(parents=True)
+    (private / "mypkg" / "__init__.py").write_text("X = 42\n")
+    (private / "flowtrack").mkdir()
+    (private / "flowtrack" / "secret.py").write_text("S = 1\n")
+    (tmp_path / "venv").chmod(0o700)
+    monkeypatch.setattr(sbmod, "_site_dirs", lambda: [*real, str(private)])
+    src = ("import glob\ndef f():\n    import mypkg\n"
+           "    return [mypkg.X, glob.glob('/opt/*/site/*/flowtrack')]\n")
+    for mode in ("bwrap", "fallback"):
+        monkeypatch.setenv("FLOWTRACK_SANDBOX", mode)
+        with Sandbox([("a", src)], limits=FAST) as sb:
+            (out,) = sb.run([Call("f")], timeout=20)
+        assert out.ok and out.value[0] == 42, (mode, out)
+        if mode == "bwrap":
+            assert out.value[1] == []  # the mirror leaves flowtrack out

@@ -186,7 +186,7 @@ def main():
         return best_deny > best_allow
 
     spawn_events = {"os.exec", "os.posix_spawn", "os.spawn", "os.system", "os.fork", "os.forkpty",
-                    "subprocess.Popen", "pty.spawn"}
+                    "subprocess.Popen", "pty.spawn", "os.kill", "os.killpg", "signal.pthread_kill"}
 
     write_root = init.get("write_root")
     write_root = realpath(write_root) if write_root else None

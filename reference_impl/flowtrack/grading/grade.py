@@ -203,9 +203,15 @@ def run_exercise(
     kwargs: dict[str, Any] = {"blocked": tuple(exercise.blocked)}
     if limits is not None:
         kwargs["limits"] = limits
+    # Every public test runs before any hidden one: the child keeps state between tests, so a
+    # public test run after a hidden one could carry the hidden inputs into its (shown) message.
+    # Results are reported in the exercise's order.
+    order = sorted(range(len(tests)), key=lambda i: tests[i].hidden)
+    done: dict[int, TestResult] = {}
     with sandbox_factory(cells, **kwargs) as box:
         result.isolation = str(getattr(box, "isolation", ""))
-        for t in tests:
+        for i in order:
+            t = tests[i]
             if t.hidden and student is not None:
                 seed = student_seed(student, exercise.id, t.name)
             else:
@@ -214,7 +220,7 @@ def run_exercise(
                 calls, scorer = t.build(np.random.default_rng(seed))
             except Exception as exc:  # a broken test definition scores 0, run goes on
                 msg = f"internal error building the test: {type(exc).__name__}: {exc}"
-                result.tests.append(TestResult(t.name, t.grade_id, 0.0, float(t.points), t.hidden, msg))
+                done[i] = TestResult(t.name, t.grade_id, 0.0, float(t.points), t.hidden, msg)
                 continue
             try:
                 outcomes = list(box.run(list(calls), t.timeout))
@@ -223,9 +229,8 @@ def run_exercise(
             if len(outcomes) != len(calls):
                 outcomes = [Outcome(False, None, "no result from the sandbox") for _ in calls]
             score, message = _score_test(t, outcomes, scorer)
-            result.tests.append(
-                TestResult(t.name, t.grade_id, score, float(t.points), t.hidden, _clip_message(message))
-            )
+            done[i] = TestResult(t.name, t.grade_id, score, float(t.points), t.hidden, _clip_message(message))
+        result.tests += [done[i] for i in range(len(tests))]
         # known once the child has started (the sandbox starts it lazily on the first run)
         for gid, err in dict(getattr(box, "cell_errors", {}) or {}).items():
             result.problems.append(_clip_message(f"cell {gid!r} failed to run: {err}"))
@@ -239,16 +244,30 @@ def run_exercise(
 def locate_notebook(student_dir: Path, exercise: Exercise) -> Path:
     """``student_dir/<exercise.notebook>``, else the only file of that name below ``student_dir``.
 
-    (Gradescope uploads are often flat.) Returns the expected path when nothing is found.
+    (Gradescope uploads are often flat.) Returns the expected path when nothing is found. A
+    notebook reached through a symlink that leads outside ``student_dir`` (another student's work,
+    a file of the grading machine) does not count as submitted.
     """
+    root = Path(student_dir).resolve()
+
+    def inside(p: Path) -> bool:
+        try:
+            return p.is_file() and p.resolve().is_relative_to(root)
+        except (OSError, RuntimeError):  # a symlink loop
+            return False
+
     expected = Path(student_dir) / exercise.notebook
-    if expected.is_file():
+    if inside(expected):
         return expected
     name = Path(exercise.notebook).name
     found = sorted(
-        p for p in Path(student_dir).rglob(name) if p.is_file() and "__MACOSX" not in p.parts
+        p for p in Path(student_dir).rglob(name) if "__MACOSX" not in p.parts and inside(p)
     )
-    return found[0] if found else expected
+    if found:
+        return found[0]
+    if os.path.lexists(expected):  # a link leading outside: report it, never read it
+        return expected.with_name(f"{expected.name} (a link leading outside the submission)")
+    return expected
 
 
 def exercises_hash(exercises: Sequence[Exercise]) -> str:

@@ -46,6 +46,9 @@ EOF
 python3 -m venv /autograder/venv
 /autograder/venv/bin/pip install -q --upgrade pip
 /autograder/venv/bin/pip install -q "/autograder/source/flowtrack[grading]"
+# Student code runs as an unprivileged uid that must read the venv (numpy) but nothing else.
+chmod o+x /autograder
+chmod -R a+rX /autograder/venv
 """
 
 RUN_AUTOGRADER = """\

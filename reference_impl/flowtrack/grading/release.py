@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -163,6 +164,18 @@ def scan_bundle(bundle: str | os.PathLike) -> list[str]:
     return problems
 
 
+_SOLUTION_LINK = re.compile(r"\[([^\]]*)\]\((?:\.\./)+solutions/[^)]*\)")
+
+
+def _unlink_solutions(markdown: str) -> str:
+    """Markdown links into ``solutions/`` (not part of the bundle) reduced to their text.
+
+    >>> print(_unlink_solutions("see [the errata](../solutions/errata.md)."))
+    see the errata (in the instructor's copy of the course).
+    """
+    return _SOLUTION_LINK.sub(r"\1 (in the instructor's copy of the course)", markdown)
+
+
 def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, force: bool = False) -> dict:
     """Write the student bundle to ``out`` (see the module docstring).
 
@@ -184,6 +197,12 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
     if not (root / "exercises").is_dir():
         raise FileNotFoundError(f"source: no exercises/ folder in {root}")
     out = Path(out).resolve()
+    course = root.resolve()
+    if course.is_relative_to(out) or any(
+        out.is_relative_to(course / d) for d in ("exercises", "lessons", "solutions", "reference_impl")
+    ):
+        # --force replaces ``out``: never the course itself or one of its source folders.
+        raise ValueError(f"out: {out} is the course or inside its sources; choose a separate folder")
     if out.exists() and any(out.iterdir()) and not (out / MARKER).exists() and not force:
         raise FileExistsError(f"out: {out} is not empty and not a flowtrack bundle (use --force)")
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -196,10 +215,14 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
         for src in sorted((root / "lessons").glob("*.md")) if (root / "lessons").is_dir() else []:
             if is_jupytext_notebook(src):
                 nb = strip_outputs(read_notebook(src))
+                for cell in nb.cells:
+                    if cell.cell_type == "markdown":
+                        cell.source = _unlink_solutions(cell.source)
                 nbformat.write(nb, tmp / "lessons" / (src.stem + ".ipynb"))
                 lessons.append(src.stem + ".ipynb")
             elif src.name == "README.md":
-                shutil.copyfile(src, tmp / "lessons" / "README.md")
+                text = _unlink_solutions(src.read_text(encoding="utf-8"))
+                (tmp / "lessons" / "README.md").write_text(text, encoding="utf-8")
         exercises = []
         (tmp / "exercises").mkdir()
         for src, rel in _iter_exercise_notebooks(root):

@@ -20,9 +20,12 @@ grader controls everything else. Defences, outermost first, and what each one st
    namespaces; ``--die-with-parent``, ``--new-session``; a fresh root holding only read-only binds of
    ``/usr`` (and the ``/lib*`` links), the Python runtime, the virtual environment's
    site-packages, a *filtered copy* of flowtrack (blocked modules replaced by stubs that raise
-   ``ImportError``, ``flowtrack.grading`` and the course tooling removed) and the runner; ``/tmp``
-   is an empty tmpfs; the student's empty temporary directory is the only writable bind (cwd and
-   HOME). Nothing of the course (repository, exercises, solutions, grader output, gradebook) exists
+   ``ImportError``, ``flowtrack.grading`` and the course tooling removed) and the runner. The
+   student's empty temporary directory is the only writable place: its ``home`` is bound at cwd
+   and HOME, its ``tmp`` at ``/tmp``; bubblewrap's own root and ``/dev`` (tmpfs, i.e. RAM that no
+   rlimit covers) are remounted read-only, and the grader measures the directory while it waits
+   (``Limits.disk_bytes``/``disk_files``), so neither the disk nor the RAM of the machine can be
+   filled. Nothing of the course (repository, exercises, solutions, grader output, gradebook) exists
    inside. Blocked third-party packages (e.g. ``scipy.optimize``) have a stub directory bound over
    them, so even loading their files by path fails. No network interfaces but loopback of the new
    namespace (so no connection to the host). When the grader runs as root it switches, before
@@ -87,6 +90,7 @@ _UID_BASE = 1_600_000_000
 _uid_counter = itertools.count()
 _SANDBOX_HOME = "/home/student"
 _OPT = "/opt/flowtrack-sandbox"
+_DISK_POLL = 0.2  # seconds between measurements of the child's directory while waiting for it
 
 
 class SandboxUnavailable(RuntimeError):
@@ -114,6 +118,14 @@ class Limits:
         Reply bytes the grader reads per batch; more kills the child.
     file_size : int
         Largest file the child may write (RLIMIT_FSIZE).
+    disk_bytes : int
+        Bytes the child may keep in its temporary directory (its only writable place: HOME, cwd and
+        ``/tmp`` all live there). The grader measures it while it waits for replies (every
+        ``0.2`` s) and after each batch, and kills the child when it is exceeded, so a student
+        cannot fill the grading machine's disk (the overshoot is bounded by what the child writes
+        in 0.2 s).
+    disk_files : int
+        Files and directories the child may create there (bounds the cost of measuring).
     """
 
     cpu_seconds: float = 20
@@ -123,10 +135,12 @@ class Limits:
     open_files: int = 64
     output_bytes: int = 1 * MiB
     file_size: int = 16 * MiB
+    disk_bytes: int = 256 * MiB
+    disk_files: int = 10_000
 
     def __post_init__(self) -> None:
         for name in ("cpu_seconds", "wall_seconds", "memory_bytes", "processes", "open_files",
-                     "output_bytes", "file_size"):
+                     "output_bytes", "file_size", "disk_bytes", "disk_files"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"Limits.{name} must be a positive number, got {v!r}")
@@ -142,6 +156,12 @@ class Limits:
 
 def _cache_root() -> Path:
     base = Path(os.environ.get("FLOWTRACK_SANDBOX_CACHE") or tempfile.gettempdir())
+    explicit = bool(os.environ.get("FLOWTRACK_SANDBOX_CACHE"))
+    if os.geteuid() == 0 and not explicit and not _world_readable(base, read=False):
+        # root with a private TMPDIR (e.g. /root/tmp): the sandbox's unprivileged uid could not
+        # reach its files there; use the machine's shared temporary directory instead.
+        shared = [Path(d) for d in ("/tmp", "/var/tmp") if _world_readable(Path(d), read=False)]
+        base = shared[0] if shared else base
     root = base / f"flowtrack-sandbox-{os.geteuid()}"
     try:
         root.mkdir(mode=0o755)
@@ -151,7 +171,7 @@ def _cache_root() -> Path:
     if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.geteuid() or st.st_mode & 0o022:
         raise RuntimeError(f"the sandbox cache {root} is not a private directory of this user")
     os.chmod(root, 0o755)
-    for sub in ("work", "ft", "stubs", "python", "bin"):
+    for sub in ("work", "ft", "stubs", "python", "bin", "site"):
         d = root / sub
         d.mkdir(mode=0o755, exist_ok=True)
         os.chmod(d, 0o711 if sub == "work" else 0o755)
@@ -260,6 +280,35 @@ def _site_dirs() -> list[str]:
     return dirs
 
 
+def _mirror_site(site: Path) -> Path:
+    """A world-readable mirror (hard links, else copies) of a site-packages folder the sandbox's
+    unprivileged uid cannot reach (e.g. a virtual environment under ``/root``); rebuilt when a
+    package is added, removed or replaced. flowtrack itself is left out (the sandbox gets its
+    filtered copy)."""
+    h = hashlib.sha256(f"{site.resolve()}\0{sys.version}".encode())
+    for e in sorted(os.scandir(site), key=lambda e: e.name):
+        h.update(f"{e.name}\0{e.stat(follow_symlinks=False).st_mtime_ns}\n".encode())
+    key = h.hexdigest()[:20]
+
+    def build(tmp: Path) -> None:
+        for dirpath, dirnames, filenames in os.walk(site):
+            rel = Path(dirpath).relative_to(site)
+            if rel == Path("."):
+                dirnames[:] = [d for d in dirnames if d != "flowtrack"]
+            dirnames[:] = [d for d in dirnames if d != "__pycache__"]
+            out = tmp / rel
+            out.mkdir(mode=0o755, parents=True, exist_ok=True)
+            os.chmod(out, 0o755)
+            for f in filenames:
+                src = Path(dirpath) / f
+                if src.is_symlink():
+                    os.symlink(os.readlink(src), out / f)
+                else:
+                    _link_or_copy(src, out / f)
+
+    return _atomic_dir(_cache_root() / "site" / key, build)
+
+
 def _flowtrack_signature() -> str:
     h = hashlib.sha256()
     for p in sorted(_FLOWTRACK_DIR.rglob("*")):
@@ -351,7 +400,9 @@ def _sandbox_uid() -> int | None:
     """A fresh unprivileged uid for this sandbox when the grader is root, else None."""
     if os.geteuid() != 0:
         return None
-    return _UID_BASE + (os.getpid() % 65536) * 64 + next(_uid_counter) % 64
+    # The whole pid (pid_max <= 2**22) so that two grader processes never share a uid: closing one
+    # student's sandbox kills every process of its uid.
+    return _UID_BASE + os.getpid() * 64 + next(_uid_counter) % 64
 
 
 def _drop_to(uid: int | None) -> None:
@@ -373,7 +424,7 @@ def _bwrap_base(bwrap: str) -> list[str]:
     for f in ("/etc/ld.so.cache", "/etc/ld.so.conf", "/etc/ld.so.conf.d", "/etc/alternatives",
               "/etc/localtime"):
         args += ["--ro-bind-try", f, f]
-    args += ["--proc", "/proc", "--dev", "/dev", "--tmpfs", "/tmp"]
+    args += ["--proc", "/proc", "--dev", "/dev"]
     return args
 
 
@@ -558,6 +609,7 @@ class Sandbox:
         self._reply_fd: int | None = None
         self._stderr = None
         self._workdir: Path | None = None
+        self._next_disk_check = 0.0
         self._cpu_used = 0.0
         self._cpu_ceiling = int(10 * limits.cpu_seconds + 60)
 
@@ -593,12 +645,26 @@ class Sandbox:
         self._uid = _sandbox_uid()
         runtime = _python_runtime(self._uid is not None)
         sites = _site_dirs()
+        if self._uid is not None:
+            sites = [d if _world_readable(Path(d)) else str(_mirror_site(Path(d))) for d in sites]
+            unreadable = [d for d in sites if not _world_readable(Path(d))]
+            if unreadable:
+                raise RuntimeError(
+                    f"the sandbox's unprivileged uid cannot read the Python packages in {unreadable[0]} "
+                    "(a folder on the way is not readable by other users): make it readable, e.g. "
+                    f"chmod -R a+rX {unreadable[0]} and chmod o+x on its parent folders"
+                )
         ft_root = _filtered_flowtrack(tuple(sorted(b for b in self.blocked if b.startswith("flowtrack."))))
         runner = _runner_dir()
         workdir = Path(tempfile.mkdtemp(prefix="student-", dir=self._workdir_parent))
-        if self._uid is not None:
-            os.chown(workdir, self._uid, self._uid)
-        os.chmod(workdir, 0o700)
+        # workdir/home is the student's HOME and cwd, workdir/tmp its /tmp: together the only places
+        # it can write (measured as one tree, see Limits.disk_bytes).
+        home, tmp = workdir / "home", workdir / "tmp"
+        for d in (home, tmp):
+            d.mkdir(mode=0o700)
+            if self._uid is not None:
+                os.chown(d, self._uid, self._uid)
+        os.chmod(workdir, 0o711)
         env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
                "MPLBACKEND": "Agg", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8",
                "PATH": "/usr/bin:/bin"}
@@ -621,14 +687,18 @@ class Sandbox:
                         inner = dst + "/" + str(loc.relative_to(src))
                 stub = _stub_dir(name)
                 cmd += ["--ro-bind", str(stub if loc.is_dir() else stub / "__init__.py"), inner]
-            cmd += ["--bind", str(workdir), _SANDBOX_HOME, "--chdir", _SANDBOX_HOME, "--clearenv"]
+            # The student's directory is the only writable place (HOME and /tmp; measured by the
+            # grader, see Limits.disk_bytes); bubblewrap's own root and /dev are tmpfs in RAM that
+            # no limit covers, so they are made read-only once everything is mounted.
+            cmd += ["--bind", str(home), _SANDBOX_HOME, "--bind", str(tmp), "/tmp",
+                    "--remount-ro", "/dev", "--remount-ro", "/", "--chdir", _SANDBOX_HOME, "--clearenv"]
             for k, v in {**env, "HOME": _SANDBOX_HOME, "TMPDIR": "/tmp"}.items():
                 cmd += ["--setenv", k, v]
             exe = str(Path(runtime.prefix) / Path(runtime.executable).relative_to(runtime.source))
             cmd += [exe, "-I", "-S", "-B", f"{_OPT}/bin/_child.py"]
             init = {"paths": [f"{_OPT}/lib", *inner_sites], "deny_paths": [], "strict_audit": False}
         else:
-            env.update(HOME=str(workdir), TMPDIR=str(workdir))
+            env.update(HOME=str(home), TMPDIR=str(tmp))
             if runtime.lib_dir:
                 env["LD_LIBRARY_PATH"] = runtime.lib_dir
             deny = [str(_FLOWTRACK_DIR), str(self._cache / "ft"), str(self._cache / "stubs"),
@@ -684,7 +754,7 @@ class Sandbox:
         try:
             self._proc = subprocess.Popen(
                 [*cmd, str(w)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._stderr,
-                pass_fds=(w,), env=env, cwd=str(workdir), start_new_session=True,
+                pass_fds=(w,), env=env, cwd=str(workdir / "home"), start_new_session=True,
                 preexec_fn=self._preexec(nproc_outer),
             )
         finally:
@@ -714,7 +784,8 @@ class Sandbox:
             left = deadline - time.monotonic()
             if left <= 0:
                 raise _ChildGone("timed out")
-            _, writable, _ = select.select([], [fd], [], left)
+            _, writable, _ = select.select([], [fd], [], min(left, _DISK_POLL))
+            self._check_disk()
             if not writable:
                 continue
             try:
@@ -729,7 +800,8 @@ class Sandbox:
             left = deadline - time.monotonic()
             if left <= 0:
                 raise _ChildGone("timed out")
-            readable, _, _ = select.select([self._reply_fd], [], [], left)
+            readable, _, _ = select.select([self._reply_fd], [], [], min(left, _DISK_POLL))
+            self._check_disk()
             if not readable:
                 continue
             b = os.read(self._reply_fd, min(n - got, 1 << 20))
@@ -763,6 +835,19 @@ class Sandbox:
         if not _plain(value):
             raise _ChildGone("the sandbox sent a reply that is not plain data")
         return value
+
+    def _check_disk(self) -> None:
+        """Raise _ChildGone when the child's directory holds more than the disk limits allow."""
+        now = time.monotonic()
+        if self._workdir is None or now < self._next_disk_check:
+            return
+        self._next_disk_check = now + _DISK_POLL
+        lim = self.limits
+        size, files = _tree_usage(self._workdir, lim.disk_files)
+        if files > lim.disk_files:
+            raise _ChildGone(f"created more than {lim.disk_files} files (the disk limit)")
+        if size > lim.disk_bytes:
+            raise _ChildGone(f"wrote more than {lim.disk_bytes} bytes to disk (the disk limit)")
 
     def _death_message(self) -> str:
         p = self._proc
@@ -851,6 +936,11 @@ class Sandbox:
                     err = reply.get("error")
                     outcomes.append(Outcome(ok=False, error=str(err)[:2000] if err else "the call failed"))
             self.stdout = "".join(printed)[:8192]
+            self._next_disk_check = 0.0
+            try:
+                self._check_disk()
+            except _ChildGone:
+                self._kill()  # the answers stand; the next batch gets a fresh, empty directory
         except _ChildGone as gone:
             self._kill()
             msg = str(gone.args[0])
@@ -937,12 +1027,40 @@ def _uid_has_processes(uid: int) -> bool:
     return False
 
 
+def _tree_usage(root: Path, max_entries: int) -> tuple[int, int]:
+    """``(bytes allocated, entries)`` under ``root`` without following symlinks; stops counting
+    entries once ``max_entries`` is exceeded."""
+    size, entries, stack = 0, 0, [str(root)]
+    while stack and entries <= max_entries:
+        try:
+            it = os.scandir(stack.pop())
+        except OSError:
+            continue
+        with it:
+            for e in it:
+                entries += 1
+                try:
+                    st = e.stat(follow_symlinks=False)
+                except OSError:
+                    continue
+                size += st.st_blocks * 512
+                if stat.S_ISDIR(st.st_mode):
+                    stack.append(e.path)
+                if entries > max_entries:
+                    break
+    return size, entries
+
+
 def _rmtree(path: Path) -> None:
     def onerror(func, p, exc_info):  # a student may have chmod-ed things
         try:
-            os.chmod(p, 0o700)
+            # Never chmod through a symlink the student planted (it may point at a grader's file);
+            # only real directories of the tree are made writable again.
             parent = os.path.dirname(p)
-            os.chmod(parent, 0o700)
+            if not os.path.islink(parent) and os.path.isdir(parent):
+                os.chmod(parent, 0o700)
+            if not os.path.islink(p) and os.path.isdir(p):
+                os.chmod(p, 0o700)
             func(p)
         except OSError:
             pass

@@ -149,6 +149,9 @@ def compare_arrays(
     if not np.all(np.isfinite(got) == np.isfinite(expected)):
         return False, "NaN/inf where the expected value is finite (or the other way round)"
     finite = np.isfinite(expected)
+    # Non-finite entries must be the same non-finite value: +inf (e.g. a gated cost) is not NaN or -inf.
+    if not np.array_equal(got[~finite], expected[~finite], equal_nan=True):
+        return False, "NaN/inf entries differ from the expected ones (+inf, -inf and NaN are different)"
     err = np.abs(got[finite] - expected[finite])
     bound = atol + rtol * np.abs(expected[finite])
     if np.all(err <= bound):
