@@ -10,17 +10,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..cli import _positive_int
+
 __all__ = ["register"]
-
-
-def _jobs(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {value}")
-    return value
 
 
 def _cmd_release(args: argparse.Namespace) -> int:
@@ -112,7 +104,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("submissions", help="folder with one sub-folder per student")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--jobs", type=_jobs, default=1, help="students graded in parallel (default: 1)")
+    p.add_argument("--jobs", type=_positive_int, default=1, help="students graded in parallel (default: 1)")
     p.add_argument("--force", action="store_true", help="re-grade students whose results are up to date")
     p.add_argument(
         "--hidden-visibility",
