@@ -97,3 +97,17 @@ def vector_case_ids(problem: str, vectors_dir: Path = VECTORS_DIR) -> list[str]:
     """Case ids of one vector file, in file order."""
     doc = json.loads((Path(vectors_dir) / f"{problem}.json").read_text())
     return [c["id"] for c in doc["cases"]]
+
+
+def assert_every_case_passes(
+    results: Sequence[CaseResult], problem: str, language: str | None = None
+) -> None:
+    """Every case of ``problem``'s vector file was run (in file order) and passed.
+
+    A case added to a vector file is picked up without code changes, so the case ids must match the
+    file's; ``language`` narrows ``results`` to one port when a runner reports several.
+    """
+    got = [r for r in results if r.problem == problem and (language is None or r.language == language)]
+    assert [r.case_id for r in got] == vector_case_ids(problem)
+    failed = [f"{r.case_id}: {r.message} (max error {r.max_error:.3g})" for r in got if not r.passed]
+    assert not failed, "\n".join(failed)

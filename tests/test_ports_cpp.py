@@ -11,7 +11,7 @@ import pytest
 
 from flowtrack.ports import lang_cpp
 from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
-from ports_helpers import failing_cases, perturbed_vectors, vector_case_ids
+from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors, vector_case_ids
 
 pytestmark = pytest.mark.xdist_group("ports-cpp")
 
@@ -49,11 +49,7 @@ def cpp_results(cpp_build):
     ("language", "problem"), [(lang, prob) for lang, probs in PROBLEMS.items() for prob in probs]
 )
 def test_port_passes_every_vector_case(cpp_results, language, problem):
-    got = [r for r in cpp_results if r.language == language and r.problem == problem]
-    # every case of the file is run (a case added to the file is picked up without code changes)
-    assert [r.case_id for r in got] == vector_case_ids(problem)
-    failed = [f"{r.case_id}: {r.message} (max error {r.max_error:.3g})" for r in got if not r.passed]
-    assert not failed, "\n".join(failed)
+    assert_every_case_passes(cpp_results, problem, language)
 
 
 def test_unit_tests_pass(cpp_build):

@@ -13,7 +13,7 @@ import pytest
 
 from flowtrack.ports import lang_java
 from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
-from ports_helpers import failing_cases, perturbed_vectors, vector_case_ids
+from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors, vector_case_ids
 
 pytestmark = pytest.mark.xdist_group("ports-java")
 
@@ -37,10 +37,7 @@ def java_results():
     ("language", "problem"), [(lang, prob) for lang, probs in PROBLEMS.items() for prob in probs]
 )
 def test_port_passes_every_vector_case(java_results, language, problem):
-    got = [r for r in java_results if r.language == language and r.problem == problem]
-    assert [r.case_id for r in got] == vector_case_ids(problem)
-    failed = [f"{r.case_id}: {r.message} (max error {r.max_error:.3g})" for r in got if not r.passed]
-    assert not failed, "\n".join(failed)
+    assert_every_case_passes(java_results, problem, language)
 
 
 def test_junit_suite_passes(java_results):

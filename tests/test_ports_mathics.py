@@ -18,17 +18,12 @@ from scipy.linalg import solve_discrete_are
 from flowtrack.ports import lang_mathics
 from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
 from flowtrack.ports.vectors_extra import scalar_riccati_P, steady_state_scalar
-from ports_helpers import failing_cases, perturbed_vectors
+from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors, vector_case_ids
 
 pytestmark = pytest.mark.xdist_group("ports-mathics")
 
 BUILD_DIR = PORTS_DIR / "build"
 PROBLEMS = list(lang_mathics.PROBLEMS)
-
-
-def _case_ids(problem, folder=VECTORS_DIR):
-    doc = json.loads((folder / f"{problem}.json").read_text())
-    return [c["id"] for c in doc["cases"]]
 
 
 @pytest.fixture(scope="module")
@@ -41,10 +36,7 @@ def mathics_results():
 
 @pytest.mark.parametrize("problem", PROBLEMS)
 def test_port_passes_every_vector_case(mathics_results, problem):
-    got = [r for r in mathics_results if r.problem == problem]
-    assert [r.case_id for r in got] == _case_ids(problem)
-    failed = [f"{r.case_id}: {r.message} (max error {r.max_error:.3g})" for r in got if not r.passed]
-    assert not failed, "\n".join(failed)
+    assert_every_case_passes(mathics_results, problem)
 
 
 def test_the_long_kalman_case_is_run(mathics_results):
@@ -60,7 +52,7 @@ def test_harness_reports_exactly_the_perturbed_cases(mathics_results, tmp_path):
     folder, spoilt = perturbed_vectors(tmp_path, PROBLEMS)
     results = lang_mathics.run(folder, BUILD_DIR, reuse=True)
     assert failing_cases(results, PROBLEMS) == spoilt
-    assert len(results) == sum(len(_case_ids(p)) for p in PROBLEMS)
+    assert len(results) == sum(len(vector_case_ids(p)) for p in PROBLEMS)
 
 
 def test_steady_state_vector_matches_scipy_dare_and_iteration():

@@ -9,7 +9,7 @@ import pytest
 
 from flowtrack.ports import lang_octave
 from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
-from ports_helpers import failing_cases, perturbed_vectors, vector_case_ids
+from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors, vector_case_ids
 
 pytestmark = pytest.mark.xdist_group("ports-octave")
 
@@ -27,10 +27,7 @@ def octave_results():
 
 @pytest.mark.parametrize("problem", PROBLEMS)
 def test_port_passes_every_vector_case(octave_results, problem):
-    got = [r for r in octave_results if r.problem == problem]
-    assert [r.case_id for r in got] == vector_case_ids(problem)
-    failed = [f"{r.case_id}: {r.message} (max error {r.max_error:.3g})" for r in got if not r.passed]
-    assert not failed, "\n".join(failed)
+    assert_every_case_passes(octave_results, problem)
 
 
 def test_harness_reports_exactly_the_perturbed_cases(octave_results, tmp_path):
