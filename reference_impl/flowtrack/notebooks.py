@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 __all__ = [
@@ -94,11 +96,17 @@ def strip_outputs(nb):
     return nb
 
 
-def _kernel_manager(kernel_name: str):
-    """An AsyncKernelManager whose kernel is launched with ``sys.executable``."""
+def _kernel_manager(kernel_name: str, socket_dir: str):
+    """An AsyncKernelManager whose kernel is launched with ``sys.executable``.
+
+    The kernel talks over Unix-domain sockets in ``socket_dir`` (a fresh directory per kernel), not
+    TCP: jupyter_client picks TCP ports by binding port 0 and releasing it before the kernel binds,
+    so kernels started at the same moment by parallel test workers (or anything else that opens a
+    local port) can collide, and a collision shows up as a notebook that waits forever.
+    """
     from jupyter_client.manager import AsyncKernelManager
 
-    km = AsyncKernelManager(kernel_name=kernel_name)
+    km = AsyncKernelManager(kernel_name=kernel_name, transport="ipc", ip=os.path.join(socket_dir, "k"))
     spec = km.kernel_spec
     if spec is not None and spec.language == "python":
         spec.argv = [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"]
@@ -152,9 +160,10 @@ def execute_notebook(path, timeout: float = 600, cwd=None, kernel_name: str = "p
     # pytest's conftest forces Agg; the kernel should use its inline backend (no show() warnings).
     env.pop("MPLBACKEND", None)
     env.setdefault("PYDEVD_DISABLE_FILE_VALIDATION", "1")
+    socket_dir = tempfile.mkdtemp(prefix="ftk-")  # short: Unix socket paths are limited to ~107 bytes
     client = NotebookClient(
         nb,
-        km=_kernel_manager(kernel_name),
+        km=_kernel_manager(kernel_name, socket_dir),
         timeout=timeout,
         kernel_name=kernel_name,
         resources={"metadata": {"path": str(cwd)}},
@@ -169,6 +178,8 @@ def execute_notebook(path, timeout: float = 600, cwd=None, kernel_name: str = "p
     except (CellTimeoutError, DeadKernelError) as exc:
         idx, src = _failing_cell(nb, code_cells)
         raise NotebookExecutionError(path, idx, src, f"{type(exc).__name__}: {exc}") from None
+    finally:
+        shutil.rmtree(socket_dir, ignore_errors=True)
     return nb
 
 
