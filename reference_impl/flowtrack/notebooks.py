@@ -161,9 +161,10 @@ def execute_notebook(path, timeout: float = 600, cwd=None, kernel_name: str = "p
     env.pop("MPLBACKEND", None)
     env.setdefault("PYDEVD_DISABLE_FILE_VALIDATION", "1")
     socket_dir = tempfile.mkdtemp(prefix="ftk-")  # short: Unix socket paths are limited to ~107 bytes
+    km = _kernel_manager(kernel_name, socket_dir)
     client = NotebookClient(
         nb,
-        km=_kernel_manager(kernel_name, socket_dir),
+        km=km,
         timeout=timeout,
         kernel_name=kernel_name,
         resources={"metadata": {"path": str(cwd)}},
@@ -179,8 +180,21 @@ def execute_notebook(path, timeout: float = 600, cwd=None, kernel_name: str = "p
         idx, src = _failing_cell(nb, code_cells)
         raise NotebookExecutionError(path, idx, src, f"{type(exc).__name__}: {exc}") from None
     finally:
+        # nbclient leaves a kernel manager it did not create running: shut the kernel down here
+        # (otherwise every executed notebook leaves a kernel behind until this process exits)
+        _shutdown(km)
         shutil.rmtree(socket_dir, ignore_errors=True)
     return nb
+
+
+def _shutdown(km) -> None:
+    from jupyter_core.utils import run_sync
+
+    try:
+        if run_sync(km.is_alive)():
+            run_sync(km.shutdown_kernel)(now=True)
+    except Exception:  # a kernel that is already gone is fine
+        pass
 
 
 def _failing_cell(nb, code_cells):
