@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import inspect
 import math
-import numbers
 import os
 import sys
 from dataclasses import dataclass, field
@@ -49,21 +48,14 @@ from typing import Any
 
 import numpy as np
 
+from ._validation import _scalar
+
 __all__ = ["Choice", "InteractiveResult", "Slider", "interactive_or_static", "widget_frontend_available"]
 
 _MODES = ("auto", "static", "widgets")
 _ENV = "FLOWTRACK_WIDGETS"
 _ENV_STATIC = ("0", "off", "no", "false", "static")
 _ENV_WIDGETS = ("1", "on", "yes", "true", "widgets")
-
-
-def _number(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -107,21 +99,21 @@ class Slider:
     integer: bool = False
 
     def __post_init__(self):
-        lo, hi = _number(self.min, "min"), _number(self.max, "max")
-        v = _number(self.value, "value")
+        lo, hi = _scalar(self.min, "min"), _scalar(self.max, "max")
+        v = _scalar(self.value, "value")
         if not lo < hi:
             raise ValueError(f"min must be < max, got min={lo}, max={hi}")
         if not lo <= v <= hi:
             raise ValueError(f"value must be in [min, max] = [{lo}, {hi}], got {v}")
         if self.log and lo <= 0:
             raise ValueError(f"min must be > 0 for a log slider, got {lo}")
-        if self.step is not None and _number(self.step, "step") <= 0:
+        if self.step is not None and _scalar(self.step, "step") <= 0:
             raise ValueError(f"step must be > 0, got {self.step}")
         static = (lo, v, hi) if self.static is None else tuple(self.static)
         if len(static) == 0:
             raise ValueError("static must hold at least one value")
         for s in static:
-            s = _number(s, "static values")
+            s = _scalar(s, "static values")
             if not lo <= s <= hi:
                 raise ValueError(f"static values must be in [min, max] = [{lo}, {hi}], got {s}")
         if self.integer:
