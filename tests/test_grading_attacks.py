@@ -513,8 +513,11 @@ def test_writing_into_the_sandbox_caches_or_the_runtime(mode):
     # shared by every later student: none of them may be changed from inside.
     from flowtrack.grading import sandbox as sbmod
 
-    cache = sbmod._cache_root()
-    before = _snapshot(cache / "ft") | _snapshot(cache / "bin")
+    # The copy and the runner this sandbox mounts (built here if a source edit made new ones);
+    # the shared cache folders themselves gain copies for other blocked sets from parallel runs.
+    grade("def add(a, b):\n    return np.asarray(a) + b\n")
+    mounted = (sbmod._filtered_flowtrack(("flowtrack.grading",)), sbmod._runner_dir())
+    before = [_snapshot(d) for d in mounted]
     cell = """
 import os, sys, flowtrack, numpy
 def add(a, b):
@@ -535,4 +538,5 @@ def add(a, b):
 """
     score, outcomes = grade(cell)
     assert score == 1.0, [o.error for o in outcomes]
-    assert _snapshot(cache / "ft") | _snapshot(cache / "bin") == before
+    assert [_snapshot(d) for d in mounted] == before
+    assert all(before), "the snapshot saw the mounted files"

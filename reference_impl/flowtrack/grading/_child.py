@@ -153,19 +153,25 @@ def main():
 
     blocked = tuple(init.get("blocked", ()))
 
+    def refuse_blocked(name):
+        """Raise ImportError when module ``name`` is a blocked module or inside one."""
+        for b in blocked:
+            if name == b or name.startswith(b + "."):
+                raise ImportError(f"{b} is not available in this exercise")
+
     class _Blocker:
         """sys.meta_path entry refusing blocked modules (a second line behind the file system)."""
 
         @staticmethod
         def find_spec(name, path=None, target=None):
-            for b in blocked:
-                if name == b or name.startswith(b + "."):
-                    raise ImportError(f"{b} is not available in this exercise")
+            refuse_blocked(name)
             return None
 
     sys.meta_path.insert(0, _Blocker)
     for name in list(sys.modules):
-        if any(name == b or name.startswith(b + ".") for b in blocked):
+        try:
+            refuse_blocked(name)
+        except ImportError:
             del sys.modules[name]
 
     deny = tuple(os.path.realpath(p) for p in init.get("deny_paths", ()))
@@ -174,16 +180,24 @@ def main():
     realpath = os.path.realpath
     fsdecode = os.fsdecode
 
-    def denied_path(p):
+    def resolved(p):
+        """The real path of an audited path argument; None for a file descriptor, "" if unusable."""
         if isinstance(p, int) or p is None:
-            return False
+            return None
         try:
-            rp = realpath(fsdecode(p))
+            return realpath(fsdecode(p))
         except Exception:
-            return True
-        best_deny = max((len(d) for d in deny if rp == d or rp.startswith(d + os.sep)), default=-1)
-        best_allow = max((len(a) for a in allow if rp == a or rp.startswith(a + os.sep)), default=-1)
-        return best_deny > best_allow
+            return ""
+
+    def deepest(rp, roots):
+        """Length of the longest of ``roots`` that is ``rp`` or one of its ancestors (-1: none)."""
+        return max((len(r) for r in roots if rp == r or rp.startswith(r + os.sep)), default=-1)
+
+    def denied_path(p):
+        rp = resolved(p)
+        if rp is None:
+            return False
+        return not rp or deepest(rp, deny) > deepest(rp, allow)
 
     spawn_events = {"os.exec", "os.posix_spawn", "os.spawn", "os.system", "os.fork", "os.forkpty",
                     "subprocess.Popen", "pty.spawn", "os.kill", "os.killpg", "signal.pthread_kill"}
@@ -194,13 +208,10 @@ def main():
                 "os.chown", "os.truncate", "os.utime", "shutil.rmtree", "shutil.move", "shutil.copyfile"}
 
     def outside(p):
-        if isinstance(p, int) or p is None:
+        rp = resolved(p)
+        if rp is None:
             return False
-        try:
-            rp = realpath(fsdecode(p))
-        except Exception:
-            return True
-        return not (rp == write_root or rp.startswith(write_root + os.sep) or rp == os.devnull)
+        return not rp or (deepest(rp, (write_root,)) < 0 and rp != os.devnull)
 
     def audit(event, args):
         if write_root is not None and args:
@@ -213,10 +224,7 @@ def main():
             if writing and outside(args[0]):
                 raise PermissionError(f"{args[0]!r}: the sandbox may only write in its own directory")
         if event == "import" and args and isinstance(args[0], str):
-            name = args[0]
-            for b in blocked:
-                if name == b or name.startswith(b + "."):
-                    raise ImportError(f"{b} is not available in this exercise")
+            refuse_blocked(args[0])
         elif event in ("open", "os.listdir", "os.scandir", "os.chdir", "ctypes.dlopen", "shutil.copyfile",
                        "os.rename", "os.link", "os.symlink", "os.truncate", "os.remove"):
             if args and denied_path(args[0]):

@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from .._validation import positive_int
 from .spec import Exercise, GradedTest, Outcome, student_seed
 
 __all__ = [
@@ -115,6 +116,11 @@ def public_seed(exercise_id: str, test_name: str) -> int:
 def _clip_message(text: str) -> str:
     text = str(text)
     return text if len(text) <= MAX_MESSAGE else text[: MAX_MESSAGE - 15] + " ... (truncated)"
+
+
+def _zero(test: GradedTest, why: str) -> TestResult:
+    """``test`` scored 0 for a reason that is not the student's answer to it (``why``)."""
+    return TestResult(test.name, test.grade_id, 0.0, float(test.points), test.hidden, why)
 
 
 def _score_test(test: GradedTest, outcomes: Sequence[Outcome], scorer) -> tuple[float, str]:
@@ -195,8 +201,7 @@ def run_exercise(
     result.problems += problems
     if not cells:
         why = problems[0] if problems else "no answer cells"
-        for t in tests:
-            result.tests.append(TestResult(t.name, t.grade_id, 0.0, float(t.points), t.hidden, why))
+        result.tests += [_zero(t, why) for t in tests]
         return result
     if sandbox_factory is None:
         from .sandbox import Sandbox as sandbox_factory
@@ -219,8 +224,7 @@ def run_exercise(
             try:
                 calls, scorer = t.build(np.random.default_rng(seed))
             except Exception as exc:  # a broken test definition scores 0, run goes on
-                msg = f"internal error building the test: {type(exc).__name__}: {exc}"
-                done[i] = TestResult(t.name, t.grade_id, 0.0, float(t.points), t.hidden, msg)
+                done[i] = _zero(t, f"internal error building the test: {type(exc).__name__}: {exc}")
                 continue
             try:
                 outcomes = list(box.run(list(calls), t.timeout))
@@ -294,11 +298,11 @@ def exercises_hash(exercises: Sequence[Exercise]) -> str:
     return h.hexdigest()
 
 
-def _submission_hash(student_dir: Path, exercises: Sequence[Exercise]) -> str:
+def _submission_hash(notebooks: dict[str, Path]) -> str:
+    """sha256 of the located notebooks (``exercise id -> path``), a missing one included."""
     h = hashlib.sha256()
-    for ex in exercises:
-        p = locate_notebook(student_dir, ex)
-        h.update(ex.id.encode() + b"\0")
+    for ex_id, p in notebooks.items():
+        h.update(ex_id.encode() + b"\0")
         h.update(hashlib.sha256(p.read_bytes()).digest() if p.is_file() else b"<missing>")
     return h.hexdigest()
 
@@ -445,7 +449,8 @@ def grade_student(
     student_dir = Path(student_dir)
     dest = Path(out) / student
     ex_hash = ex_hash or exercises_hash(exercises)
-    sub_hash = _submission_hash(student_dir, exercises)
+    notebooks = {ex.id: locate_notebook(student_dir, ex) for ex in exercises}
+    sub_hash = _submission_hash(notebooks)
     results_path = dest / "results.json"
     if not force:
         old = _read_results(results_path)
@@ -462,14 +467,12 @@ def grade_student(
                 }
     results = []
     for ex in exercises:
-        nb = locate_notebook(student_dir, ex)
         try:
-            r = run_exercise(ex, nb, student, limits=limits, sandbox_factory=sandbox_factory)
+            r = run_exercise(ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory)
         except Exception as exc:  # one broken exercise must not lose the others
             r = ExerciseResult(ex.id, ex.title, ex.notebook)
             r.problems.append(f"internal grader error: {type(exc).__name__}: {exc}")
-            why = r.problems[0]
-            r.tests = [TestResult(t.name, t.grade_id, 0.0, float(t.points), t.hidden, why) for t in ex.tests]
+            r.tests = [_zero(t, r.problems[0]) for t in ex.tests]
         results.append(r)
     isolation = next((r.isolation for r in results if r.isolation.startswith("fallback")), "")
     isolation = isolation or next((r.isolation for r in results if r.isolation), "")
@@ -516,15 +519,17 @@ def list_students(submissions: str | os.PathLike) -> list[str]:
     return names
 
 
-def _worker(args: tuple) -> dict:
+def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_factory=None) -> dict:
+    """Grade one task of :func:`grade_class`; ``exercises`` default to the registry's by id."""
     student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids = args
     try:
-        from .exercises import get_exercise
+        if exercises is None:
+            from .exercises import get_exercise
 
-        exercises = [get_exercise(i) for i in exercise_ids]
+            exercises = [get_exercise(i) for i in exercise_ids]
         return grade_student(
             student, student_dir, exercises, out, force=force, hidden_visibility=hidden_visibility,
-            ex_hash=ex_hash,
+            ex_hash=ex_hash, sandbox_factory=sandbox_factory,
         )
     except Exception as exc:  # reported in the summary, the class goes on
         return {"student": student, "error": f"{type(exc).__name__}: {exc}"}
@@ -567,8 +572,7 @@ def grade_class(
 
     from .gradebook import write_gradebook
 
-    if not isinstance(jobs, int) or jobs < 1:
-        raise ValueError(f"jobs must be a whole number >= 1, got {jobs!r}")
+    positive_int(jobs, "jobs")
     log = log or (lambda msg: print(msg, file=sys.stderr))
     from .exercises import EXERCISES
 
@@ -589,16 +593,7 @@ def grade_class(
     bar = tqdm(total=len(tasks), desc="grading", unit="student", disable=not progress)
     if jobs == 1 or len(tasks) <= 1 or custom:
         for task in tasks:
-            if custom:
-                try:
-                    summaries[task[0]] = grade_student(
-                        task[0], task[1], exercises, out, force=force,
-                        hidden_visibility=hidden_visibility, ex_hash=ex_hash, sandbox_factory=sandbox_factory,
-                    )
-                except Exception as exc:
-                    summaries[task[0]] = {"student": task[0], "error": f"{type(exc).__name__}: {exc}"}
-            else:
-                summaries[task[0]] = _worker(task)
+            summaries[task[0]] = _worker(task, exercises, sandbox_factory)
             bar.update(1)
     else:
         import multiprocessing as mp

@@ -95,11 +95,11 @@ def build_autograder(out: str | os.PathLike, *, source: str | os.PathLike | None
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp")
 
-    def add(zf: zipfile.ZipFile, name: str, text: str, mode: int = 0o644) -> None:
+    def add(zf: zipfile.ZipFile, name: str, data: str | bytes, mode: int = 0o644) -> None:
         info = zipfile.ZipInfo(name, date_time=(2020, 1, 1, 0, 0, 0))
         info.external_attr = (0o100000 | mode) << 16
         info.compress_type = zipfile.ZIP_DEFLATED
-        zf.writestr(info, text)
+        zf.writestr(info, data)
 
     with zipfile.ZipFile(tmp, "w") as zf:
         add(zf, "setup.sh", SETUP_SH, 0o755)
@@ -110,11 +110,7 @@ def build_autograder(out: str | os.PathLike, *, source: str | os.PathLike | None
         for p in sorted(pkg.rglob("*")):
             if not p.is_file() or "__pycache__" in p.parts or p.suffix in (".pyc", ".so", ".o"):
                 continue
-            rel = p.relative_to(root).as_posix()
-            info = zipfile.ZipInfo(f"flowtrack/{rel}", date_time=(2020, 1, 1, 0, 0, 0))
-            info.external_attr = (0o100644) << 16
-            info.compress_type = zipfile.ZIP_DEFLATED
-            zf.writestr(info, p.read_bytes())
+            add(zf, f"flowtrack/{p.relative_to(root).as_posix()}", p.read_bytes())
     os.replace(tmp, out)
     return out
 

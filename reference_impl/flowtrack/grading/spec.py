@@ -34,8 +34,9 @@ __all__ = [
 class Call:
     """One call of a student function: ``function(*args, **kwargs)`` inside the child.
 
-    ``args``/``kwargs`` hold plain data or numpy arrays (sent to the child as nested lists and
-    rebuilt there as float64 arrays when ``arrays`` names them, see the sandbox).
+    ``args``/``kwargs`` hold plain data or numpy arrays (a bool, integer or float array is sent to
+    the child as nested lists with its dtype and shape and rebuilt there as a bool, int64 or float64
+    array, see the sandbox).
     """
 
     function: str
