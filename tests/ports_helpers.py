@@ -9,11 +9,31 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
-from flowtrack.ports.base import VECTORS_DIR, CaseResult
+import pytest
+
+from flowtrack.ports.base import VECTORS_DIR, CaseResult, ToolchainMissing
+from flowtrack.ports.runner import DEFAULT_BUILD_DIR as BUILD_DIR
 from flowtrack.ports.vectors import dumps
+
+__all__ = [
+    "BUILD_DIR",
+    "assert_every_case_passes",
+    "failing_cases",
+    "perturbed_vectors",
+    "run_port",
+    "vector_case_ids",
+]
+
+
+def run_port(run: Callable[..., list[CaseResult]], *args) -> list[CaseResult]:
+    """``run(*args)``, with a missing toolchain failing the test (the ports are never skipped)."""
+    try:
+        return run(*args)
+    except ToolchainMissing as exc:
+        pytest.fail(f"toolchain missing (the ports are never skipped): {exc}")
 
 
 def _first_number_path(value, path=()):

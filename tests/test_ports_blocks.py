@@ -6,20 +6,15 @@ import numpy as np
 import pytest
 
 from flowtrack.ports import lang_blocks
-from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
-from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors
+from flowtrack.ports.base import VECTORS_DIR
+from ports_helpers import BUILD_DIR, assert_every_case_passes, failing_cases, perturbed_vectors, run_port
 
 pytestmark = pytest.mark.xdist_group("ports-blocks")
-
-BUILD_DIR = PORTS_DIR / "build"
 
 
 @pytest.fixture(scope="module")
 def blocks_results():
-    try:
-        return lang_blocks.run(VECTORS_DIR, BUILD_DIR)
-    except ToolchainMissing as exc:
-        pytest.fail(f"bdsim missing (the ports are never skipped): {exc}")
+    return run_port(lang_blocks.run, VECTORS_DIR, BUILD_DIR)
 
 
 def test_port_passes_every_vector_case(blocks_results):

@@ -10,12 +10,18 @@ from __future__ import annotations
 import pytest
 
 from flowtrack.ports import lang_cpp
-from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
-from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors, vector_case_ids
+from flowtrack.ports.base import VECTORS_DIR
+from ports_helpers import (
+    BUILD_DIR,
+    assert_every_case_passes,
+    failing_cases,
+    perturbed_vectors,
+    run_port,
+    vector_case_ids,
+)
 
 pytestmark = pytest.mark.xdist_group("ports-cpp")
 
-BUILD_DIR = PORTS_DIR / "build"
 PROBLEMS = {
     "cpp-eigen": [
         "kalman_cv2d",
@@ -31,10 +37,7 @@ PROBLEMS = {
 
 @pytest.fixture(scope="module")
 def cpp_build():
-    try:
-        return lang_cpp.build(BUILD_DIR)
-    except ToolchainMissing as exc:
-        pytest.fail(f"C++ toolchain missing (the ports are never skipped): {exc}")
+    return run_port(lang_cpp.build, BUILD_DIR)
 
 
 @pytest.fixture(scope="module")

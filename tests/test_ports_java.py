@@ -12,12 +12,18 @@ import numpy as np
 import pytest
 
 from flowtrack.ports import lang_java
-from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
-from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors, vector_case_ids
+from flowtrack.ports.base import VECTORS_DIR, ToolchainMissing
+from ports_helpers import (
+    BUILD_DIR,
+    assert_every_case_passes,
+    failing_cases,
+    perturbed_vectors,
+    run_port,
+    vector_case_ids,
+)
 
 pytestmark = pytest.mark.xdist_group("ports-java")
 
-BUILD_DIR = PORTS_DIR / "build"
 PROBLEMS = {
     "java": ["kalman_cv2d", "white_noise_q", "projection_jacobian"],
     "java-ejml": ["kalman_cv2d", "white_noise_q"],
@@ -27,10 +33,7 @@ PROBLEMS = {
 
 @pytest.fixture(scope="module")
 def java_results():
-    try:
-        return lang_java.run(VECTORS_DIR, BUILD_DIR)
-    except ToolchainMissing as exc:
-        pytest.fail(f"Java toolchain missing (the ports are never skipped): {exc}")
+    return run_port(lang_java.run, VECTORS_DIR, BUILD_DIR)
 
 
 @pytest.mark.parametrize(

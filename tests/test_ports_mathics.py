@@ -16,22 +16,25 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from flowtrack.ports import lang_mathics
-from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
+from flowtrack.ports.base import VECTORS_DIR
 from flowtrack.ports.vectors_extra import scalar_riccati_P, steady_state_scalar
-from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors, vector_case_ids
+from ports_helpers import (
+    BUILD_DIR,
+    assert_every_case_passes,
+    failing_cases,
+    perturbed_vectors,
+    run_port,
+    vector_case_ids,
+)
 
 pytestmark = pytest.mark.xdist_group("ports-mathics")
 
-BUILD_DIR = PORTS_DIR / "build"
 PROBLEMS = list(lang_mathics.PROBLEMS)
 
 
 @pytest.fixture(scope="module")
 def mathics_results():
-    try:
-        return lang_mathics.run(VECTORS_DIR, BUILD_DIR)
-    except ToolchainMissing as exc:
-        pytest.fail(f"Mathics3 missing (the ports are never skipped): {exc}")
+    return run_port(lang_mathics.run, VECTORS_DIR, BUILD_DIR)
 
 
 @pytest.mark.parametrize("problem", PROBLEMS)

@@ -8,21 +8,24 @@ from __future__ import annotations
 import pytest
 
 from flowtrack.ports import lang_octave
-from flowtrack.ports.base import PORTS_DIR, VECTORS_DIR, ToolchainMissing
-from ports_helpers import assert_every_case_passes, failing_cases, perturbed_vectors, vector_case_ids
+from flowtrack.ports.base import VECTORS_DIR, ToolchainMissing
+from ports_helpers import (
+    BUILD_DIR,
+    assert_every_case_passes,
+    failing_cases,
+    perturbed_vectors,
+    run_port,
+    vector_case_ids,
+)
 
 pytestmark = pytest.mark.xdist_group("ports-octave")
 
-BUILD_DIR = PORTS_DIR / "build"
 PROBLEMS = ["kalman_cv2d", "white_noise_q", "projection_jacobian", "variational_scene_flow"]
 
 
 @pytest.fixture(scope="module")
 def octave_results():
-    try:
-        return lang_octave.run(VECTORS_DIR, BUILD_DIR)
-    except ToolchainMissing as exc:
-        pytest.fail(f"Octave missing (the ports are never skipped): {exc}")
+    return run_port(lang_octave.run, VECTORS_DIR, BUILD_DIR)
 
 
 @pytest.mark.parametrize("problem", PROBLEMS)

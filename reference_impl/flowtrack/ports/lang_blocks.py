@@ -25,12 +25,11 @@ import contextlib
 import importlib.util
 import io
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 
-from .base import CaseResult, ToolchainMissing
+from .base import CaseResult, ToolchainMissing, compare_outputs, failure
 
 __all__ = ["LANGUAGES", "run", "build_diagram", "simulate"]
 
@@ -184,13 +183,10 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
     for problem in PROBLEMS:
         path = Path(vectors_dir) / f"{problem}.json"
         if not path.exists():
-            results.append(
-                CaseResult("blocks", problem, "-", False, math.nan, f"vector file {path.name} missing")
-            )
+            results.append(failure("blocks", problem, f"vector file {path.name} missing"))
             continue
         for case in json.loads(path.read_text())["cases"]:
-            inp, exp = case["input"], case["expected"]
-            rtol, atol = float(case["rtol"]), float(case["atol"])
+            inp = case["input"]
             try:
                 pos, P = simulate(
                     inp["dt"],
@@ -201,22 +197,10 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
                     inp["measurements"],
                 )
             except Exception as exc:  # any simulation failure fails this case
-                results.append(
-                    CaseResult("blocks", problem, case["id"], False, math.nan, f"{type(exc).__name__}: {exc}")
-                )
+                results.append(failure("blocks", problem, f"{type(exc).__name__}: {exc}", case["id"]))
                 continue
-            ok, worst, msg = True, 0.0, "ok"
-            for key, got in (("positions", pos), ("P_final", P)):
-                e = np.asarray(exp[key], dtype=float)
-                if got.shape != e.shape:
-                    ok, worst, msg = False, math.nan, f"{key}: shape {got.shape}, expected {e.shape}"
-                    break
-                err = np.abs(got - e)
-                worst = max(worst, float(err.max()))
-                bad = np.argwhere(~(err <= atol + rtol * np.abs(e)))
-                if len(bad) and ok:
-                    i = tuple(bad[0])
-                    where = [int(j) for j in i]
-                    ok, msg = False, f"{key}{where}: got {float(got[i])!r}, expected {float(e[i])!r}"
+            ok, worst, msg = compare_outputs(
+                {"positions": pos, "P_final": P}, case["expected"], float(case["rtol"]), float(case["atol"])
+            )
             results.append(CaseResult("blocks", problem, case["id"], ok, worst, msg))
     return results

@@ -17,7 +17,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from .base import PORTS_DIR, CaseResult, ToolchainMissing, parse_case_lines
+from .base import PORTS_DIR, CaseResult, ToolchainMissing, harness_results
 
 __all__ = ["LANGUAGES", "run", "run_junit", "build"]
 
@@ -145,12 +145,7 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
     for lang in LANGUAGES:
         cmd = [java, f"-Djava.library.path={jni}", "-cp", os.pathsep.join(classpath)]
         cmd += ["flowtrack.ports.Harness", lang, str(vectors_dir)]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        got = parse_case_lines(lang, proc.stdout)
-        if not got:
-            msg = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-            got = [CaseResult(lang, "harness", "-", False, float("nan"), f"exit {proc.returncode}: {msg}")]
-        results.extend(got)
+        results += harness_results(lang, subprocess.run(cmd, capture_output=True, text=True))
     return results
 
 

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .base import PORTS_DIR, CaseResult, ToolchainMissing
+from .base import PORTS_DIR, CaseResult, ToolchainMissing, compare_outputs, failure
 
 __all__ = [
     "LANGUAGES",
@@ -117,24 +117,6 @@ def _unpack(problem: str, got) -> dict:
     return {"P": got[0], "P_post": got[1]}
 
 
-def _compare(got: dict, expected: dict, rtol: float, atol: float) -> tuple[bool, float, str]:
-    ok, worst, msg = True, 0.0, "ok"
-    for key, exp in expected.items():
-        if key not in got:
-            continue  # the port does not produce this (informational) output
-        e = np.atleast_1d(np.asarray(exp, dtype=float))
-        g = np.atleast_1d(np.asarray(got[key], dtype=float))
-        if g.shape != e.shape:
-            return False, math.nan, f"{key}: shape {g.shape}, expected {e.shape}"
-        err = np.abs(g - e)
-        worst = max(worst, float(np.nanmax(err, initial=0.0)) if not np.isnan(err).any() else math.inf)
-        bad = np.argwhere(~(err <= atol + rtol * np.abs(e)))
-        if len(bad) and ok:
-            i = tuple(bad[0])
-            ok, msg = False, f"{key}{list(i)}: got {g[i]!r}, expected {e[i]!r}"
-    return ok, worst, msg
-
-
 def run(vectors_dir: Path, build_dir: Path, *, reuse: bool = False) -> list[CaseResult]:
     """Evaluate every case of :data:`PROBLEMS` in one Mathics3 session and compare.
 
@@ -168,18 +150,14 @@ def run(vectors_dir: Path, build_dir: Path, *, reuse: bool = False) -> list[Case
     for problem in PROBLEMS:
         path = vectors_dir / f"{problem}.json"
         if not path.exists():
-            results.append(
-                CaseResult("mathics", problem, "-", False, math.nan, f"vector file {path.name} missing")
-            )
+            results.append(failure("mathics", problem, f"vector file {path.name} missing"))
             continue
         for case in json.loads(path.read_text())["cases"]:
             try:
                 jobs.append(case_expression(problem, case["input"]))
                 meta.append((problem, case))
             except (KeyError, TypeError, ValueError) as exc:
-                results.append(
-                    CaseResult("mathics", problem, case["id"], False, math.nan, f"bad input: {exc}")
-                )
+                results.append(failure("mathics", problem, f"bad input: {exc}", case["id"]))
     out = Path(build_dir) / "mathics"
     out.mkdir(parents=True, exist_ok=True)
     src_hash = hashlib.sha256(b"".join((SRC_DIR / s).read_bytes() for s in SOURCES)).hexdigest()
@@ -209,14 +187,14 @@ def run(vectors_dir: Path, build_dir: Path, *, reuse: bool = False) -> list[Case
         cid = case["id"]
         if i not in answers:
             why = errors.get(i, f"no result (exit {returncode}: {tail})")
-            results.append(CaseResult("mathics", problem, cid, False, math.nan, why))
+            results.append(failure("mathics", problem, why, cid))
             continue
         try:
             got = _unpack(problem, parse_input_form(answers[i]))
         except (ValueError, IndexError, TypeError) as exc:
-            results.append(CaseResult("mathics", problem, cid, False, math.nan, f"unparsable output: {exc}"))
+            results.append(failure("mathics", problem, f"unparsable output: {exc}", cid))
             continue
-        ok, err, msg = _compare(got, case["expected"], float(case["rtol"]), float(case["atol"]))
+        ok, err, msg = compare_outputs(got, case["expected"], float(case["rtol"]), float(case["atol"]))
         results.append(CaseResult("mathics", problem, cid, ok, err, msg))
     return results
 

@@ -12,7 +12,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from .base import PORTS_DIR, CaseResult, ToolchainMissing, parse_case_lines
+from .base import PORTS_DIR, CaseResult, ToolchainMissing, harness_results
 
 __all__ = ["LANGUAGES", "run", "SRC_DIR"]
 
@@ -56,11 +56,4 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
     octave = _octave()
     cmd = [octave, "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--no-history"]
     cmd += ["--path", str(SRC_DIR), "--eval", f"run_vectors({_quote(Path(vectors_dir).resolve())});"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=SRC_DIR)
-    results = parse_case_lines("octave", proc.stdout)
-    if not results:
-        msg = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-        results = [
-            CaseResult("octave", "harness", "-", False, float("nan"), f"exit {proc.returncode}: {msg}")
-        ]
-    return results
+    return harness_results("octave", subprocess.run(cmd, capture_output=True, text=True, cwd=SRC_DIR))

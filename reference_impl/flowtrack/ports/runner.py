@@ -14,7 +14,7 @@ import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from .base import PORTS_DIR, VECTORS_DIR, CaseResult, ToolchainMissing
+from .base import PORTS_DIR, VECTORS_DIR, CaseResult, ToolchainMissing, failure
 
 __all__ = ["LANG_MODULES", "format_table", "register", "run_ports"]
 
@@ -28,10 +28,6 @@ LANG_MODULES: dict[str, str] = {
 }
 
 DEFAULT_BUILD_DIR = PORTS_DIR / "build"
-
-
-def _failure(language: str, problem: str, message: str) -> CaseResult:
-    return CaseResult(language, problem, "-", False, math.nan, message)
 
 
 def run_ports(
@@ -79,21 +75,21 @@ def run_ports(
         try:
             module = importlib.import_module(LANG_MODULES[name])
         except ImportError as exc:
-            results.append(_failure(name, "error", f"cannot import {LANG_MODULES[name]}: {exc}"))
+            results.append(failure(name, "error", f"cannot import {LANG_MODULES[name]}: {exc}"))
             continue
         languages: Sequence[str] = getattr(module, "LANGUAGES", (name,))
         try:
             got = list(module.run(vectors_dir, build_dir))
         except ToolchainMissing as exc:
-            results += [_failure(lang, "toolchain", str(exc)) for lang in languages]
+            results += [failure(lang, "toolchain", str(exc)) for lang in languages]
             continue
         except Exception as exc:  # a broken build or harness is a reported failure, not a crash
-            results += [_failure(lang, "error", f"{type(exc).__name__}: {exc}") for lang in languages]
+            results += [failure(lang, "error", f"{type(exc).__name__}: {exc}") for lang in languages]
             continue
         results += got
         for lang in languages:
             if not any(r.language == lang for r in got):
-                results.append(_failure(lang, "no-cases", "the port reported no case"))
+                results.append(failure(lang, "no-cases", "the port reported no case"))
     return results
 
 

@@ -55,8 +55,6 @@ Problems (inputs -> expected; the conventions the ports must follow):
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import json
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -64,6 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from .base import VECTORS_DIR
+from .vectors_extra import lucas_kanade, steady_state_scalar
 
 __all__ = ["PROBLEMS", "dumps", "generate", "problem_names", "load_vectors", "write_vectors"]
 
@@ -311,6 +310,8 @@ def _cloud_and_targets(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np
 
 def graph_scene_flow() -> dict:
     """Problem document ``graph_scene_flow`` (kNN-graph and explicit-edge variants)."""
+    import scipy.sparse as sp
+
     from flowtrack.sceneflow import graph_scene_flow as gsf
     from flowtrack.sceneflow import knn_graph
 
@@ -327,8 +328,6 @@ def graph_scene_flow() -> dict:
         w = np.round(W.data[keep], 12)
         edges = [[int(i), int(j), float(v)] for i, j, v in zip(W.row[keep], W.col[keep], w)]
         edges.sort()
-        import scipy.sparse as sp
-
         ii, jj, ww = (np.array([e[c] for e in edges]) for c in range(3))
         Wm = sp.coo_matrix((ww, (ii.astype(int), jj.astype(int))), shape=(n, n))
         V = gsf(X, Y, dt, lam, W=(Wm + Wm.T).tocsr(), solver="splu")
@@ -409,27 +408,18 @@ def rigid_icp() -> dict:
 # ----------------------------------------------------------------------------------------------------
 # registry
 # ----------------------------------------------------------------------------------------------------
-def _registry() -> dict[str, Callable[[], dict]]:
-    problems: dict[str, Callable[[], dict]] = {
-        "kalman_cv2d": kalman_cv2d,
-        "white_noise_q": white_noise_q,
-        "projection_jacobian": projection_jacobian,
-        "mahalanobis_assignment": mahalanobis_assignment,
-        "graph_scene_flow": graph_scene_flow,
-        "variational_scene_flow": variational_scene_flow,
-        "rigid_icp": rigid_icp,
-    }
-    # The Java/Octave/Mathics helper's problems live in vectors_extra; picked up once it exists
-    # (an import error inside it is not hidden).
-    if importlib.util.find_spec(__package__ + ".vectors_extra") is not None:
-        extra = importlib.import_module(__package__ + ".vectors_extra")
-        problems["lucas_kanade"] = extra.lucas_kanade
-        problems["steady_state_scalar"] = extra.steady_state_scalar
-    return problems
-
-
 #: Problem name -> generator of its document.
-PROBLEMS: dict[str, Callable[[], dict]] = _registry()
+PROBLEMS: dict[str, Callable[[], dict]] = {
+    "kalman_cv2d": kalman_cv2d,
+    "white_noise_q": white_noise_q,
+    "projection_jacobian": projection_jacobian,
+    "mahalanobis_assignment": mahalanobis_assignment,
+    "graph_scene_flow": graph_scene_flow,
+    "variational_scene_flow": variational_scene_flow,
+    "rigid_icp": rigid_icp,
+    "lucas_kanade": lucas_kanade,
+    "steady_state_scalar": steady_state_scalar,
+}
 
 
 def problem_names() -> list[str]:
