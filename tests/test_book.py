@@ -12,7 +12,6 @@ are missing these tests fail with the install command, they are never skipped.
 from __future__ import annotations
 
 import re
-import shutil
 from pathlib import Path
 
 import pytest
@@ -153,31 +152,6 @@ def test_checker_requires_math_to_be_typeset(tmp_path):
     page = tmp_path / "math.html"
     page.write_text('<html><body><span class="math notranslate nohighlight">x</span></body></html>')
     assert any("no MathJax output" in p for p in check_pages([page], None))
-
-
-# ----------------------------------------------------------------------------------------------------
-# the demo report
-# ----------------------------------------------------------------------------------------------------
-@pytest.mark.slow
-def test_demo_report_opens_offline_in_headless_chromium(tmp_path):
-    from flowtrack.cli import main
-
-    out = tmp_path / "demo"
-    code = main(
-        ["demo", "--out", str(out), "--frames", "4", "--height", "96", "--width", "128",
-         "--objects", "3", "--no-progress", "--no-real-data"]
-    )
-    assert code == 0
-    report = out / "report.html"
-    assert report.is_file() and report.stat().st_size > 0, "flowtrack demo wrote no report.html"
-    # self-contained: the file alone, away from the figures it was made with
-    alone = tmp_path / "alone" / "report.html"
-    alone.parent.mkdir()
-    shutil.copy(report, alone)
-    problems = check_pages([alone], tmp_path / "shots")
-    assert not problems, "\n".join(problems)
-    html = alone.read_text(encoding="utf-8")
-    assert html.count("<img") >= 3 and 'src="data:image/' in html
 
 
 # ----------------------------------------------------------------------------------------------------

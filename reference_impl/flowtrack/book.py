@@ -47,6 +47,8 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ._validation import positive, positive_int
+
 __all__ = [
     "BookResult",
     "build_book",
@@ -358,7 +360,7 @@ def build_book(
         ``root`` without ``lessons/README.md`` or without lesson notebooks.
     ValueError
         ``out`` is a file or a non-empty folder that is not a book; ``staging`` not empty;
-        ``jobs``/``timeout`` not positive.
+        ``jobs``/``timeout`` not positive (``TypeError``: not an integer / not a number).
     flowtrack.notebooks.NotebookExecutionError
         A notebook cell failed (names the notebook, the cell and the traceback).
     RuntimeError
@@ -373,10 +375,8 @@ def build_book(
     root = Path(root).resolve() if root is not None else course_root()
     if jobs is None:
         jobs = max(1, min(2, os.cpu_count() or 1))
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
-    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
-        raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
+    jobs = positive_int(jobs, "jobs")
+    timeout = positive(timeout, "timeout")  # checked here too: before any worker starts
     out = Path(out).resolve()
     sources = _collect(root)
 

@@ -39,21 +39,20 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ._graph import as_labels
-from ._validation import as_array, positive
+from ._validation import as_array, positive, positive_int
 from .camera import backproject, optical_flow_from_scene_flow, project, projection_jacobian
 from .clustering import cluster_motion, drop_small_clusters
-from .report import Figure, Section, Table, write_report
+from .report import Figure, Section, Table, render_markdown, write_report
 from .sceneflow import (
     iterative_graph_scene_flow,
     nearest_neighbor_targets,
     rigid_flow_per_cluster,
     scene_flow_metrics,
 )
-from .synth import SCENARIOS, make_scene
+from .synth import make_scene
 
 __all__ = [
-    "DemoConfig", "FlowPair", "METHODS", "detect_objects", "estimate_clouds", "estimate_pair", "run_demo",
-    "support_planes",
+    "DemoConfig", "FlowPair", "METHODS", "detect_objects", "estimate_clouds", "run_demo", "support_planes",
 ]
 
 METHODS = ("nearest-neighbour", "graph", "graph + re-matching", "rigid per cluster")
@@ -141,16 +140,6 @@ def estimate_clouds(X, Y, dt: float, cfg: DemoConfig):
     return {m: flows[m] for m in METHODS}, clusters, seconds
 
 
-def estimate_pair(frame_t, frame_t1, dt: float, cfg: DemoConfig, rng: np.random.Generator, index: int = 0):
-    """Run :func:`estimate_clouds` on one synthetic frame pair (random subsample of each cloud)."""
-    i0 = _subsample(len(frame_t.points), cfg.max_points, rng)
-    i1 = _subsample(len(frame_t1.points), cfg.max_points, rng)
-    X, Y = frame_t.points[i0], frame_t1.points[i1]
-    pair = FlowPair(index, X, frame_t.gt_flow[i0], frame_t.labels[i0])
-    pair.flows, pair.clusters, pair.seconds = estimate_clouds(X, Y, dt, cfg)
-    return pair
-
-
 def cluster_purity(truth, clusters) -> float:
     """Share of points whose cluster's majority true label is their own (−1 clusters count as one).
 
@@ -223,11 +212,6 @@ def _flow_table(metrics: dict[str, dict[str, dict[str, float]]], caption: str = 
     return Table(["method", "EPE3D all (mm)", "EPE3D moving (mm)", "Acc3DS", "Acc3DR", "Outliers"], rows,
                  caption or "Acc3DS, Acc3DR and outliers are over the moving points (FlowNet3D thresholds).",
                  digits=[None, 2, 2, 3, 3, 3])
-
-
-def metrics_table(metrics: dict[str, dict[str, dict[str, float]]]) -> str:
-    """A markdown table of the scene-flow metrics, one row per method (EPE3D per frame, in mm)."""
-    return _flow_table(metrics).markdown()
 
 
 # ------------------------------------------------------------------------------------------------
@@ -578,22 +562,24 @@ def _image_cov(pos, P, cam):
 
 
 def _plot_trajectories(inp, hist, gt_hist, preds, path: Path) -> None:
+    """Top and image views; ``hist``: track id → [(position, covariance, status)] per reported
+    frame, ``gt_hist``: object id → [true position] per frame."""
     plt = _plt()
     A, b, labels = _view(inp)
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 5.2), constrained_layout=True)
     for k, pts in gt_hist.items():
-        Q = np.array([p for _, p in pts]) @ A.T + b
+        Q = np.array(pts) @ A.T + b
         ax.plot(Q[:, 0], Q[:, 1], "k--", lw=1, alpha=0.7)
         ax.annotate(f"object {k}", Q[0], fontsize=8, color="0.3")
     for tid, rows in hist.items():
         c = _color(tid)
-        Q = np.array([p for _, p, _, _ in rows]) @ A.T + b
+        Q = np.array([p for p, _, _ in rows]) @ A.T + b
         ax.plot(Q[:, 0], Q[:, 1], "-", color=c, lw=1.6, label=f"track {tid}")
-        for j, (_, p, P, status) in enumerate(rows):
+        for j, (p, P, status) in enumerate(rows):
             if j % 3 == 0 or j == len(rows) - 1 or status == "coasting":
                 _ellipse(ax, p @ A.T + b, A @ P @ A.T, color=c, lw=0.8,
                          ls="--" if status == "coasting" else "-")
-        uv = project(np.array([p for _, p, _, _ in rows]), inp.camera)
+        uv = project(np.array([p for p, _, _ in rows]), inp.camera)
         ax2.plot(uv[:, 0], uv[:, 1], "-", color=c, lw=1.6)
         ax2.annotate(str(tid), uv[-1], color=c, fontsize=9, weight="bold")
     for p in preds:
@@ -665,11 +651,7 @@ def _write_gif(inp, snapshots, path: Path) -> None:
 def _load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict_ahead, scenario,
                 input_options) -> _Input:
     if input_dir is None:
-        if scenario not in SCENARIOS:
-            raise ValueError(f"scenario must be one of {SCENARIOS}, got {scenario!r}")
-        need = {"mixed": 3, "crossing": 2, "occlusion": 1}.get(scenario, 0)
-        if n_objects < need:
-            raise ValueError(f"n_objects must be >= {need} for scenario {scenario!r}, got {n_objects}")
+        # make_scene checks scenario and n_objects (and names them)
         total = max(n_frames + predict_ahead, MIN_LAYOUT_FRAMES if scenario == "mixed" else 0)
         try:
             scene = make_scene(n_objects=n_objects, n_frames=total, image_size=image_size, dt=0.1,
@@ -678,11 +660,11 @@ def _load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict
             raise ValueError(f"n_objects={n_objects} does not fit on the table: {exc}") from exc
         return _Input(f"synthetic scene ({scenario})", scene.camera, scene.dt, [f.rgb for f in scene.frames],
                       [f.depth for f in scene.frames], n_frames, scene)
-    from .rgbd_io import load_stereo_sequence, load_tum_sequence
+    from .rgbd_io import load_rgbd
 
     opts = dict(input_options or {})
     stereo = bool(opts.pop("stereo", False))
-    seq = (load_stereo_sequence if stereo else load_tum_sequence)(input_dir, max_frames=n_frames, **opts)
+    seq = load_rgbd(input_dir, stereo=stereo, max_frames=n_frames, **opts)
     if len(seq) < 2:
         raise ValueError(f"input {input_dir} has {len(seq)} usable frame(s); scene flow needs at least 2")
     return _Input(f"{'stereo' if stereo else 'RGB-D'} sequence {input_dir}", seq.camera, seq.dt, seq.rgb,
@@ -735,13 +717,9 @@ def run_demo(
         The summary that is also written to ``metrics.json``.
     """
     cfg = config or DemoConfig()
-    if isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or n_frames < 2:
-        raise ValueError(f"n_frames must be an int >= 2 (scene flow needs a frame pair), got {n_frames}")
-    if (isinstance(predict_ahead, bool) or not isinstance(predict_ahead, (int, np.integer))
-            or predict_ahead < 1):
-        raise ValueError(f"predict_ahead must be an int >= 1, got {predict_ahead}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+    n_frames = positive_int(n_frames, "n_frames", minimum=2)  # scene flow needs a frame pair
+    predict_ahead = positive_int(predict_ahead, "predict_ahead")
+    seed = positive_int(seed, "seed", minimum=0)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"out must be a folder, got the file {out}")
@@ -762,8 +740,6 @@ def run_demo(
     min_pixels = int(np.ceil(cfg.min_detection_points * max(1.0, n_valid / cfg.max_points)))
     pairs: list[FlowPair] = []
     snapshots, hyp, gt_frames, n_detections = [], [], [], []
-    hist: dict[int, list] = {}
-    gt_hist: dict[int, list] = {}
     nxt = _cloud(inp, 0, cfg, rng)
     for t in tqdm(range(inp.n - 1), desc="flowtrack demo", unit="frame", disable=not progress):
         (X, gt_flow, labels_gt), nxt = nxt, _cloud(inp, t + 1, cfg, rng)
@@ -779,14 +755,18 @@ def run_demo(
         n_detections.append(len(Z))
         snapshots.append([(tr.id, tr.position.copy(), tr.P[:3, :3].copy(), tr.status) for tr in reported])
         hyp.append({tr.id: tr.position.copy() for tr in reported if tr.misses == 0})
-        for tr in reported:
-            hist.setdefault(tr.id, []).append((t, tr.position.copy(), tr.P[:3, :3].copy(), tr.status))
         if scene is not None:
-            gt_t = _surface_centroids(scene.frames[t], min_pixels)
-            gt_frames.append(gt_t)
-            for k, p in gt_t.items():
-                gt_hist.setdefault(k, []).append((t, p))
+            gt_frames.append(_surface_centroids(scene.frames[t], min_pixels))
         pairs.append(pair)
+    # per-track rows (position, covariance, status) and per-object true positions, in frame order
+    hist: dict[int, list] = {}
+    for snap in snapshots:
+        for tid, *row in snap:
+            hist.setdefault(tid, []).append(row)
+    gt_hist: dict[int, list] = {}
+    for gt_t in gt_frames:
+        for k, p in gt_t.items():
+            gt_hist.setdefault(k, []).append(p)
     last = inp.n - 2
 
     # prediction N frames ahead: the tracker's own filter, predicted without updates
@@ -800,7 +780,7 @@ def run_demo(
         fut = scene.frames[last + predict_ahead]
         truth_future = _surface_centroids(fut, min_pixels)
         centres_future = scene.object_centroids(last + predict_ahead)
-        truth_now = _surface_centroids(scene.frames[last], min_pixels)
+        truth_now = dict(gt_frames[-1])  # the surface centroids of frame `last`
         for k, c in scene.object_centroids(last).items():
             truth_now.setdefault(k, c)
     final = {tid: pos for tid, pos, _, _ in snapshots[-1]} if snapshots else {}
@@ -885,15 +865,7 @@ def run_demo(
 
     sections = _sections(inp, summary, figures, real, tud)
     (out / "metrics.json").write_text(json.dumps(summary, indent=2, default=_json_default))
-    md = ["# flowtrack demo: metrics", ""]
-    for s in sections:
-        if s.tables or s.note:
-            md += [f"## {s.title}", ""]
-            if s.note:
-                md += [s.note, ""]
-            for tb in s.tables:
-                md += [tb.markdown(), ""]
-    (out / "metrics.md").write_text("\n".join(md))
+    (out / "metrics.md").write_text(render_markdown("flowtrack demo: metrics", sections))
     write_report(out / "report.html", "flowtrack demo report", sections,
                  intro="RGB-D frames → point clouds → scene flow → motion clusters → tracks → "
                        "prediction: the "

@@ -19,6 +19,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from ._validation import positive
+
 __all__ = [
     "NotebookExecutionError",
     "execute_notebook",
@@ -138,7 +140,7 @@ def execute_notebook(path, timeout: float = 600, cwd=None, kernel_name: str = "p
     FileNotFoundError
         ``path`` does not exist.
     ValueError
-        ``timeout`` is not positive.
+        ``timeout`` is not a finite number > 0 (``TypeError`` if it is not a number).
     NotebookExecutionError
         A cell raised (or timed out / the kernel died); the message holds the cell's source and the
         traceback.
@@ -149,8 +151,7 @@ def execute_notebook(path, timeout: float = 600, cwd=None, kernel_name: str = "p
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"path: no notebook at {path}")
-    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
-        raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
+    timeout = positive(timeout, "timeout")
     cwd = Path(cwd) if cwd is not None else path.resolve().parent
     if not cwd.is_dir():
         raise ValueError(f"cwd must be an existing directory, got {cwd}")

@@ -24,7 +24,7 @@ import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["Figure", "Section", "Table", "data_uri", "render_report", "write_report"]
+__all__ = ["Figure", "Section", "Table", "data_uri", "render_markdown", "render_report", "write_report"]
 
 _MIME = {".png": "image/png", ".gif": "image/gif", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
 
@@ -198,6 +198,33 @@ def render_report(title: str, sections, intro: str = "") -> str:
             parts.append(f"<pre>{html.escape(s.code)}</pre>")
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
+
+
+def render_markdown(title: str, sections) -> str:
+    """The tables (and notes) of the sections as Markdown; sections with neither are left out.
+
+    Examples
+    --------
+    >>> t = Table(["a"], [[1]])
+    >>> print(render_markdown("m", [Section("S", tables=[t]), Section("empty", paragraphs=["x"])]))
+    # m
+    <BLANKLINE>
+    ## S
+    <BLANKLINE>
+    | a |
+    |---:|
+    | 1 |
+    <BLANKLINE>
+    """
+    md = [f"# {title}", ""]
+    for s in sections:
+        if s.tables or s.note:
+            md += [f"## {s.title}", ""]
+            if s.note:
+                md += [s.note, ""]
+            for t in s.tables:
+                md += [t.markdown(), ""]
+    return "\n".join(md)
 
 
 def write_report(path, title: str, sections, intro: str = "") -> Path:
