@@ -2,7 +2,8 @@
 
 Each ``bench_*.py`` measures flowtrack against a peer in the same process (these machines are noisy,
 so only ratios measured side by side are meaningful) and writes its table to ``results/<name>.md``.
-Usage: ``python benchmarks/run_all.py [--quick]``.
+Usage: ``python benchmarks/run_all.py [--quick]``; ``--collect`` only rebuilds RESULTS.md from the
+tables already in ``results/`` (after running one script by hand).
 """
 
 from __future__ import annotations
@@ -20,8 +21,11 @@ HERE = Path(__file__).resolve().parent
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="small problem sizes (smoke run)")
+    parser.add_argument(
+        "--collect", action="store_true", help="run nothing: rebuild RESULTS.md from results/*.md"
+    )
     args = parser.parse_args()
-    scripts = sorted(HERE.glob("bench_*.py"))
+    scripts = [] if args.collect else sorted(HERE.glob("bench_*.py"))
     failed = []
     for script in scripts:
         print(f"== {script.name}", flush=True)

@@ -68,10 +68,14 @@ __all__ = [
 HAVE_CHOLMOD = _cholmod_cholesky is not None
 
 _SOLVERS = ("auto", "cholmod", "splu", "cg")
-# solver="auto": block CG when the Gershgorin bound on cond(dt^2 I + lam L) is at most this with
-# CHOLMOD available (CG then needs a few dozen iterations and beats the factorisation) ...
-_CG_KAPPA_WITH_CHOLMOD = 100.0
-# ... or at most this without CHOLMOD (SuperLU's fill-in grows fast, CG's cost only with sqrt(kappa)).
+# solver="auto": block CG when the Gershgorin bound on cond(dt^2 I + lam L) is at most a limit, else a
+# direct solver. CG costs ~ N sqrt(kappa), the Cholesky factorisation ~ N^1.4 on depth-camera kNN
+# graphs (k = 8), so with CHOLMOD the crossover grows with N: measured at kappa ~ 18 for N = 20k and
+# ~ 60 for N = 100k (benchmarks/bench_graphflow.py, section 4), i.e. about 18 (N / 20k)^0.8 ...
+_CG_KAPPA_WITH_CHOLMOD = 18.0
+_CG_KAPPA_N_REF = 20_000
+_CG_KAPPA_N_EXPONENT = 0.8
+# ... and without CHOLMOD this fixed limit (SuperLU's fill-in grows fast, CG's cost only with sqrt(kappa)).
 _CG_KAPPA_WITHOUT_CHOLMOD = 1.0e3
 
 
@@ -206,12 +210,13 @@ def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
     :func:`iterative_graph_scene_flow`) share the one factorisation.
     """
     if solver == "auto":
-        limit = _CG_KAPPA_WITH_CHOLMOD if HAVE_CHOLMOD else _CG_KAPPA_WITHOUT_CHOLMOD
-        solver = "cg" if kappa <= limit else ("cholmod" if HAVE_CHOLMOD else "splu")
+        solver = "cg" if kappa <= _cg_kappa_limit(A.shape[0]) else ("cholmod" if HAVE_CHOLMOD else "splu")
     if solver == "cholmod":
         if not HAVE_CHOLMOD:
             raise ValueError("solver='cholmod' needs scikit-sparse (sksparse.cholmod), not importable")
-        return _cholmod_cholesky(A.tocsc())
+        # Simplicial (column by column) LDL': these graphs fill in too little for the supernodal
+        # BLAS kernels to pay off; measured 1.4-1.9x faster for N = 5k-100k with 1 or 2 BLAS threads.
+        return _cholmod_cholesky(A.tocsc(), mode="simplicial")
     if solver == "splu":
         return spla.splu(A.tocsc(), permc_spec="COLAMD").solve
     direct = []  # built only if CG ever fails
@@ -233,6 +238,13 @@ def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
         return direct[0](B)
 
     return cg_solve
+
+
+def _cg_kappa_limit(n: int) -> float:
+    """Largest condition bound for which ``solver="auto"`` picks block CG on an N-point graph."""
+    if not HAVE_CHOLMOD:
+        return _CG_KAPPA_WITHOUT_CHOLMOD
+    return _CG_KAPPA_WITH_CHOLMOD * (n / _CG_KAPPA_N_REF) ** _CG_KAPPA_N_EXPONENT
 
 
 def _graph_system(n: int, W: sp.csr_matrix, dt: float, lam: float) -> tuple[sp.csr_matrix, float]:
@@ -288,8 +300,9 @@ def graph_scene_flow(
         ``"cholmod"``: sparse Cholesky (scikit-sparse), ``"splu"``: SuperLU (scipy), ``"cg"``:
         Jacobi-preconditioned CG on the three columns at once. ``"auto"`` uses CG when the Gershgorin
         bound :math:`\kappa = 1 + 2 \lambda d_{max} / \Delta t^2` on the condition number is at most
-        100 (1000 without CHOLMOD), else CHOLMOD if importable, else SuperLU — the crossover measured
-        in ``benchmarks/bench_graphflow.py``.
+        :math:`18 (N / 20000)^{0.8}` (1000 without CHOLMOD), else CHOLMOD (simplicial
+        :math:`LDL^\top`) if importable, else SuperLU — the crossover measured in
+        ``benchmarks/bench_graphflow.py``.
     tol : float > 0, keyword-only
         For CG (default 1e-8; measured errors against CHOLMOD are 1e-9 to 1e-12, see
         ``benchmarks/results/graphflow.md``): the relative error of each column is at most ``tol``, by

@@ -34,7 +34,20 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 def _cmd_grade(args: argparse.Namespace) -> int:
     from .grade import grade_class
+    from .spec import read_secret
 
+    secret = None
+    if args.secret_file is None:
+        print(
+            "warning: no --secret-file: hidden-test inputs are seeded from student and test names only, "
+            "so a student who has the course package can predict them",
+            file=sys.stderr,
+        )
+    else:
+        existed = Path(args.secret_file).exists()
+        secret = read_secret(args.secret_file, create=True)
+        if not existed:
+            print(f"created the seed key {args.secret_file} (owner-only; reuse it)", file=sys.stderr)
     rows = grade_class(
         args.submissions,
         args.out,
@@ -43,6 +56,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         hidden_visibility=args.hidden_visibility,
         assignment=args.assignment,
         progress=not args.no_progress,
+        secret=secret,
     )
     graded = sum(1 for r in rows if not r.get("skipped") and "error" not in r)
     skipped = sum(1 for r in rows if r.get("skipped"))
@@ -58,7 +72,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
 def _cmd_gradescope(args: argparse.Namespace) -> int:
     from .gradescope import build_autograder
 
-    path = build_autograder(args.out)
+    path = build_autograder(args.out, secret_file=args.secret_file)
     print(f"wrote {path} (upload it as the assignment's autograder; Ubuntu 24.04 base image)")
     return 0
 
@@ -114,6 +128,13 @@ def register(subparsers) -> None:
     )
     p.add_argument("--assignment", default="flowtrack", help="assignment name in the gradebook")
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    p.add_argument(
+        "--secret-file",
+        metavar="FILE",
+        default=None,
+        help="the instructor's seed key for hidden-test inputs (created with 32 random bytes if missing; "
+        "keep it away from students and reuse it for every run of a class)",
+    )
     p.set_defaults(func=_cmd_grade)
 
     p = subparsers.add_parser(
@@ -126,6 +147,12 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument("--out", default="autograder.zip", help="zip to write (default: autograder.zip)")
+    p.add_argument(
+        "--secret-file",
+        metavar="FILE",
+        default=None,
+        help="include this seed key (as for grade; created if missing) so hidden inputs are unpredictable",
+    )
     p.set_defaults(func=_cmd_gradescope)
 
 

@@ -9,9 +9,11 @@ the score of a test is
 
 .. math:: s_t = p_t \\, \\mathrm{clip}(f_t, 0, 1), \\qquad S = \\sum_t s_t \\le \\sum_t p_t .
 
-Hidden tests draw their inputs from ``student_seed(student, exercise.id, test.name)``; public tests
-from a fixed seed (:func:`public_seed`), the same one ``flowtrack check`` uses, so a student's own
-check and the instructor's grade agree on the public tests.
+Hidden tests draw their inputs from ``student_seed(student, exercise.id, test.name, secret)``, keyed
+by the instructor's secret when one is given (``flowtrack grade --secret-file``; without it the
+hidden inputs are predictable from the student's name); public tests from a fixed seed
+(:func:`public_seed`), the same one ``flowtrack check`` uses, so a student's own check and the
+instructor's grade agree on the public tests.
 
 Outputs of :func:`grade_class` (``out`` is the ``--out`` folder)::
 
@@ -46,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from .._validation import positive_int
-from .spec import Exercise, GradedTest, Outcome, student_seed
+from .spec import Exercise, GradedTest, Outcome, secret_id, student_seed
 
 __all__ = [
     "ExerciseResult",
@@ -170,6 +172,7 @@ def run_exercise(
     public_only: bool = False,
     limits: Any = None,
     sandbox_factory: Callable[..., Any] | None = None,
+    secret: bytes | None = None,
 ) -> ExerciseResult:
     """Grade one notebook against one exercise.
 
@@ -187,6 +190,8 @@ def run_exercise(
         Resource limits for the sandbox (its defaults when ``None``).
     sandbox_factory : callable or None
         ``Sandbox``-like class (tests inject fakes); default :class:`flowtrack.grading.sandbox.Sandbox`.
+    secret : bytes or None
+        The instructor's seed key for the hidden tests (:func:`~flowtrack.grading.spec.read_secret`).
 
     Returns
     -------
@@ -218,7 +223,7 @@ def run_exercise(
         for i in order:
             t = tests[i]
             if t.hidden and student is not None:
-                seed = student_seed(student, exercise.id, t.name)
+                seed = student_seed(student, exercise.id, t.name, secret)
             else:
                 seed = public_seed(exercise.id, t.name)
             try:
@@ -441,9 +446,12 @@ def grade_student(
     limits: Any = None,
     sandbox_factory: Callable[..., Any] | None = None,
     ex_hash: str | None = None,
+    secret: bytes | None = None,
 ) -> dict:
     """Grade one student's folder; write ``out/<student>/feedback/*`` then ``results.json``.
 
+    ``secret`` keys the hidden tests' seeds (see :func:`run_exercise`); results made with another
+    key (or none) are not kept on a re-run.
     Returns ``{"student", "skipped", "score", "max_score", "exercises": {id: score}, "isolation"}``.
     """
     student_dir = Path(student_dir)
@@ -451,12 +459,17 @@ def grade_student(
     ex_hash = ex_hash or exercises_hash(exercises)
     notebooks = {ex.id: locate_notebook(student_dir, ex) for ex in exercises}
     sub_hash = _submission_hash(notebooks)
+    key_id = secret_id(secret)
     results_path = dest / "results.json"
     if not force:
         old = _read_results(results_path)
         if old is not None:
             info = old["extra_data"]["flowtrack"]
-            if info.get("exercises_hash") == ex_hash and info.get("submission_hash") == sub_hash:
+            if (
+                info.get("exercises_hash") == ex_hash
+                and info.get("submission_hash") == sub_hash
+                and info.get("secret_id", "") == key_id
+            ):
                 return {
                     "student": student,
                     "skipped": True,
@@ -468,7 +481,9 @@ def grade_student(
     results = []
     for ex in exercises:
         try:
-            r = run_exercise(ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory)
+            r = run_exercise(
+                ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory, secret=secret
+            )
         except Exception as exc:  # one broken exercise must not lose the others
             r = ExerciseResult(ex.id, ex.title, ex.notebook)
             r.problems.append(f"internal grader error: {type(exc).__name__}: {exc}")
@@ -480,7 +495,12 @@ def grade_student(
         student,
         results,
         hidden_visibility=hidden_visibility,
-        extra={"exercises_hash": ex_hash, "submission_hash": sub_hash, "isolation": isolation},
+        extra={
+            "exercises_hash": ex_hash,
+            "submission_hash": sub_hash,
+            "secret_id": key_id,
+            "isolation": isolation,
+        },
     )
     for r in results:
         write_atomic(dest / "feedback" / f"{r.exercise_id}.md", feedback_markdown(student, r))
@@ -521,7 +541,7 @@ def list_students(submissions: str | os.PathLike) -> list[str]:
 
 def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_factory=None) -> dict:
     """Grade one task of :func:`grade_class`; ``exercises`` default to the registry's by id."""
-    student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids = args
+    student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids, secret = args
     try:
         if exercises is None:
             from .exercises import get_exercise
@@ -529,7 +549,7 @@ def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_fa
             exercises = [get_exercise(i) for i in exercise_ids]
         return grade_student(
             student, student_dir, exercises, out, force=force, hidden_visibility=hidden_visibility,
-            ex_hash=ex_hash, sandbox_factory=sandbox_factory,
+            ex_hash=ex_hash, sandbox_factory=sandbox_factory, secret=secret,
         )
     except Exception as exc:  # reported in the summary, the class goes on
         return {"student": student, "error": f"{type(exc).__name__}: {exc}"}
@@ -561,8 +581,12 @@ def grade_class(
     progress: bool = True,
     log: Callable[[str], None] | None = None,
     sandbox_factory: Callable[..., Any] | None = None,
+    secret: bytes | None = None,
 ) -> list[dict]:
     """Grade every student folder of ``submissions`` into ``out`` (see the module docstring).
+
+    ``secret`` (the instructor's key, :func:`~flowtrack.grading.spec.read_secret`) seeds the hidden
+    tests; use the same one for every run of a class.
 
     ``jobs`` worker processes grade students in parallel (each runs its own sandboxes); ``jobs=1``
     grades in this process, as do exercises not in the registry and a given ``sandbox_factory``
@@ -586,7 +610,7 @@ def grade_class(
     ex_hash = exercises_hash(exercises)
     tasks = [
         (s, str(Path(submissions) / s), str(out), force, hidden_visibility, ex_hash,
-         tuple(ex.id for ex in exercises))
+         tuple(ex.id for ex in exercises), secret)
         for s in students
     ]
     summaries: dict[str, dict] = {}

@@ -13,7 +13,8 @@ The zip holds::
 paths come from the environment so that it can be tried outside Gradescope: ``AUTOGRADER_ROOT``
 (default ``/autograder``) and ``FLOWTRACK_PYTHON`` (default ``$AUTOGRADER_ROOT/venv/bin/python``).
 The hidden tests' inputs are seeded by the submitter's Gradescope id from
-``submission_metadata.json`` (``"submission"`` when it is absent). ``FLOWTRACK_EXERCISES`` (comma-
+``submission_metadata.json`` (``"submission"`` when it is absent), keyed by the instructor's
+``secret`` when the zip holds one (``flowtrack gradescope --secret-file``). ``FLOWTRACK_EXERCISES`` (comma-
 separated ids) restricts grading to some exercises (one assignment per exercise on Gradescope).
 Use a Gradescope base image with Python >= 3.11 (Ubuntu 24.04).
 """
@@ -58,11 +59,17 @@ set -uo pipefail
 ROOT="${AUTOGRADER_ROOT:-/autograder}"
 PY="${FLOWTRACK_PYTHON:-$ROOT/venv/bin/python}"
 mkdir -p "$ROOT/results"
+SECRET=()
+if [ -f "$ROOT/source/secret" ]; then  # the instructor's seed key (flowtrack gradescope --secret-file)
+    chmod 600 "$ROOT/source/secret"
+    SECRET=(--secret-file "$ROOT/source/secret")
+fi
 exec "$PY" -m flowtrack.grading.gradescope run \\
     --submission "$ROOT/submission" \\
     --metadata "$ROOT/submission_metadata.json" \\
     --results "$ROOT/results/results.json" \\
-    ${FLOWTRACK_EXERCISES:+--exercises "$FLOWTRACK_EXERCISES"}
+    ${FLOWTRACK_EXERCISES:+--exercises "$FLOWTRACK_EXERCISES"} \\
+    "${SECRET[@]}"
 """
 
 _SAFE = re.compile(r"[^A-Za-z0-9_.@+\-]")
@@ -79,12 +86,25 @@ def _package_root() -> Path:
     return root
 
 
-def build_autograder(out: str | os.PathLike, *, source: str | os.PathLike | None = None) -> Path:
+def build_autograder(
+    out: str | os.PathLike,
+    *,
+    source: str | os.PathLike | None = None,
+    secret_file: str | os.PathLike | None = None,
+) -> Path:
     """Write the Gradescope autograder zip to ``out`` (see the module docstring); returns its path.
 
     Only the package (``reference_impl/flowtrack``), ``pyproject.toml`` and ``README.md`` are copied:
-    no exercises, solutions, lessons or caches.
+    no exercises, solutions, lessons or caches. With ``secret_file`` (created if missing, see
+    :func:`~flowtrack.grading.spec.read_secret`) the key is added as ``secret`` (mode 0600: the
+    sandbox's unprivileged uid cannot read it, and it is not bound into the sandbox) and seeds the
+    hidden tests.
     """
+    secret = None
+    if secret_file is not None:
+        from .spec import read_secret
+
+        secret = read_secret(secret_file, create=True)
     root = Path(source) if source is not None else _package_root()
     pkg = root / "reference_impl" / "flowtrack"
     if not pkg.is_dir():
@@ -104,6 +124,8 @@ def build_autograder(out: str | os.PathLike, *, source: str | os.PathLike | None
     with zipfile.ZipFile(tmp, "w") as zf:
         add(zf, "setup.sh", SETUP_SH, 0o755)
         add(zf, "run_autograder", RUN_AUTOGRADER, 0o755)
+        if secret is not None:
+            add(zf, "secret", secret, 0o600)
         add(zf, "flowtrack/pyproject.toml", (root / "pyproject.toml").read_text(encoding="utf-8"))
         readme = root / "README.md"
         add(zf, "flowtrack/README.md", readme.read_text(encoding="utf-8") if readme.is_file() else "")
@@ -136,6 +158,7 @@ def run_submission(
     *,
     student: str = "submission",
     exercises=None,
+    secret: bytes | None = None,
 ) -> dict:
     """Grade one Gradescope submission folder and write ``results`` (Gradescope's results.json).
 
@@ -151,7 +174,7 @@ def run_submission(
         if exercises is None:
             from .exercises import EXERCISES as exercises
         with tempfile.TemporaryDirectory(prefix="flowtrack-gs-") as tmp:
-            summary = grade_student(student, submission, tuple(exercises), tmp, force=True)
+            summary = grade_student(student, submission, tuple(exercises), tmp, force=True, secret=secret)
             data = json.loads((Path(tmp) / student / "results.json").read_text(encoding="utf-8"))
         if summary.get("isolation", "").startswith("fallback"):
             data["output"] += f"\n(sandbox isolation: {summary['isolation']})"
@@ -171,6 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--metadata", default=None, help="Gradescope's submission_metadata.json")
     run.add_argument("--student", default=None, help="student id (default: from --metadata)")
     run.add_argument("--exercises", default=None, help="comma-separated exercise ids (default: all)")
+    run.add_argument("--secret-file", default=None, help="the instructor's seed key (the zip's secret)")
     args = parser.parse_args(argv)
     student = args.student or student_from_metadata(args.metadata)
     exercises = None
@@ -178,7 +202,12 @@ def main(argv: list[str] | None = None) -> int:
         from .exercises import get_exercise
 
         exercises = [get_exercise(i.strip()) for i in args.exercises.split(",") if i.strip()]
-    data = run_submission(args.submission, args.results, student=student, exercises=exercises)
+    secret = None
+    if args.secret_file:
+        from .spec import read_secret
+
+        secret = read_secret(args.secret_file)
+    data = run_submission(args.submission, args.results, student=student, exercises=exercises, secret=secret)
     print(f"flowtrack autograder: {student}: score {data.get('score', 0):g}", file=sys.stderr)
     return 0
 
