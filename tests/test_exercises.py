@@ -15,15 +15,17 @@ import copy
 import dataclasses
 import itertools
 import json
+import math
 import re
 from pathlib import Path
+from typing import ClassVar
 
 import nbformat
 import numpy as np
 import pytest
 
 from flowtrack.grading.exercises import EXERCISES, _ex09_expected, get_exercise, plain_data, run_in_process
-from flowtrack.grading.spec import Outcome, student_seed
+from flowtrack.grading.spec import Call, Exercise, GradedTest, Outcome, student_seed
 
 ROOT = Path(__file__).resolve().parents[1]
 EXDIR = ROOT / "exercises"
@@ -546,6 +548,128 @@ def test_scorer_messages_for_public_tests():
     assert res[1] == 0.0 and "shape (3, 2)" in res[3]
     (res,) = run_in_process(ex, ns, cell="test_project", hidden=True)
     assert res[3].startswith("hidden test")  # hidden tests report the score only
+
+
+# --------------------------------------------------------------------------------------------------
+# the in-process runner seeds and clips exactly as `flowtrack grade` / `flowtrack check` do
+# --------------------------------------------------------------------------------------------------
+def _drawing_exercise(fraction: float | None = None) -> Exercise:
+    """A synthetic exercise whose public and hidden tests both draw their inputs from ``rng`` (the
+    registry's public tests use fixed inputs, so they cannot tell two seeds apart). Its scorer
+    returns ``fraction`` when given, else the share of calls that returned something."""
+
+    def build(rng):
+        calls = [Call("echo", (rng.normal(size=3),)), Call("echo", (float(rng.uniform()),))]
+
+        def scorer(outcomes):
+            if fraction is not None:
+                return fraction, "fixed"
+            return sum(o.ok for o in outcomes) / len(outcomes), "share answered"
+
+        return calls, scorer
+
+    tests = (
+        GradedTest("public draw", "test_echo", 2.0, hidden=False, build=build),
+        GradedTest("hidden draw", "test_echo", 3.0, hidden=True, build=build),
+    )
+    return Exercise("exx_draw", "draws", "exx_draw.ipynb", ("echo",), (), tests)
+
+
+class _RecordingSandbox:
+    """Sandbox stand-in for run_exercise: records the calls it is sent and echoes their argument."""
+
+    sent: ClassVar[list[tuple[str, list]]] = []
+
+    def __init__(self, cells, **kwargs):
+        self.isolation = "recording"
+        self.cell_errors: dict[str, str] = {}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def run(self, calls, timeout):
+        self.sent.extend((c.function, plain_data(list(c.args))) for c in calls)
+        return [Outcome(True, plain_data(c.args[0])) for c in calls]
+
+
+def _echo_notebook(ex, tmp_path) -> Path:
+    cell = {"cell_type": "code", "execution_count": None, "outputs": [],
+            "source": "def echo(x):\n    return x\n",
+            "metadata": {"nbgrader": {"grade_id": "echo", "solution": True}}}
+    nb = tmp_path / ex.notebook
+    nb.write_text(json.dumps({"nbformat": 4, "nbformat_minor": 5, "metadata": {}, "cells": [cell]}))
+    return nb
+
+
+def _grader_inputs(ex, tmp_path, student, public_only=False) -> list[tuple[str, list]]:
+    """What `flowtrack grade` (``student``) or `flowtrack check` (None, public only) sends, in order."""
+    from flowtrack.grading.grade import run_exercise
+
+    nb = _echo_notebook(ex, tmp_path)
+    _RecordingSandbox.sent = []
+    result = run_exercise(ex, nb, student, public_only=public_only, sandbox_factory=_RecordingSandbox)
+    assert not result.problems, result.problems
+    return list(_RecordingSandbox.sent)
+
+
+def _in_process_inputs(ex, student=None, **kwargs) -> list[tuple[str, list]]:
+    got = []
+
+    def echo(x):
+        got.append(("echo", plain_data([x])))
+        return x
+
+    if student is not None:
+        kwargs["student"] = student
+    results = run_in_process(ex, {"echo": echo}, **kwargs)
+    assert results and all(earned == points for _, earned, points, _ in results), results
+    return got
+
+
+def test_in_process_public_inputs_are_those_of_grade_and_check(tmp_path):
+    from flowtrack.grading.grade import public_seed
+
+    ex = _drawing_exercise()
+    public = ex.tests[0]
+    assert not public.hidden and ex.tests[1].hidden
+    n = 2  # calls per test
+
+    check = _grader_inputs(ex, tmp_path, None, public_only=True)
+    graded = _grader_inputs(ex, tmp_path, "alice")  # public tests run first, then hidden ones
+    assert len(check) == n and len(graded) == 2 * n
+    # the notebook's default student and a named one see the public inputs of check and grade
+    assert _in_process_inputs(ex, hidden=False) == check == graded[:n]
+    assert _in_process_inputs(ex, "alice", hidden=False) == check
+    # those are the calls built from public_seed, which differ from the student-seeded ones (so this
+    # test tells the two seeds apart)
+    built = [(c.function, plain_data(list(c.args)))
+             for c in public.build(np.random.default_rng(public_seed(ex.id, public.name)))[0]]
+    assert check == built
+    for student in ("public", "alice"):
+        other = public.build(np.random.default_rng(student_seed(student, ex.id, public.name)))[0]
+        assert [(c.function, plain_data(list(c.args))) for c in other] != built
+    # hidden tests keep the student's seed (no secret in the notebook path)
+    assert _in_process_inputs(ex, "alice", hidden=True) == graded[n:]
+    assert _in_process_inputs(ex, "bob", hidden=True) != graded[n:]
+
+
+@pytest.mark.parametrize(
+    "fraction, share",
+    [(math.nan, 0.0), (math.inf, 0.0), (-math.inf, 0.0), (-0.5, 0.0), (0.25, 0.25), (1.5, 1.0)],
+)
+def test_in_process_clips_a_scorer_fraction_as_grade_does(tmp_path, fraction, share):
+    from flowtrack.grading.grade import run_exercise
+
+    ex = _drawing_exercise(fraction)
+    results = run_in_process(ex, {"echo": lambda x: x}, student="alice")
+    earned = {name: pts for name, pts, _, _ in results}
+    assert earned == {t.name: t.points * share for t in ex.tests}
+    assert not any(math.isnan(v) for v in earned.values())
+    graded = run_exercise(ex, _echo_notebook(ex, tmp_path), "alice", sandbox_factory=_RecordingSandbox)
+    assert {t.name: t.score for t in graded.tests} == earned
 
 
 # --------------------------------------------------------------------------------------------------

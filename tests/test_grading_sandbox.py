@@ -7,6 +7,7 @@ The attack suite is in test_grading_attacks.py.
 import json
 import math
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -315,3 +316,111 @@ def test_root_with_a_private_venv_still_grades(tmp_path, monkeypatch):
         assert out.ok and out.value[0] == 42, (mode, out)
         if mode == "bwrap":
             assert out.value[1] == []  # the mirror leaves flowtrack out
+
+
+# -- the cache of prepared copies -------------------------------------------------------------------
+
+
+@pytest.fixture
+def private_cache(monkeypatch):
+    """A cache root of its own (FLOWTRACK_SANDBOX_CACHE, in a directory other users can traverse, as
+    the sandbox's uid must when grading as root); the makers' remembered copies are forgotten before
+    and after, so neither this test nor later ones use another root's copies."""
+    import shutil
+    import tempfile
+
+    from flowtrack.grading import sandbox as sbmod
+
+    makers = (sbmod._filtered_flowtrack, sbmod._runner_dir, sbmod._python_runtime)
+    for m in makers:
+        m.cache_clear()
+    base = Path(tempfile.mkdtemp(prefix="flowtrack-cache-test-"))
+    base.chmod(0o711)
+    monkeypatch.setenv("FLOWTRACK_SANDBOX_CACHE", str(base))
+    try:
+        yield sbmod._cache_root()
+    finally:
+        for m in makers:
+            m.cache_clear()
+        shutil.rmtree(base, ignore_errors=True)
+
+
+def _aged(path, days):
+    t = time.time() - days * 86400
+    os.utime(path, (t, t), follow_symlinks=False)
+    return path
+
+
+def test_stale_cached_copies_are_pruned_when_a_new_one_is_made(private_cache, tmp_path):
+    from flowtrack.grading import sandbox as sbmod
+
+    kind = private_cache / "ft"
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "keep.txt").write_text("not the cache's")
+    _aged(outside, 5)  # as stale as can be: only following a symlink would reach it
+
+    def copy(name, days, link_out=False):
+        d = kind / name
+        d.mkdir()
+        (d / "flowtrack").mkdir()
+        (d / "flowtrack" / "__init__.py").write_text("")
+        if link_out:
+            (d / "escape").symlink_to(outside, target_is_directory=True)
+        return _aged(d, days)
+
+    stale = copy("a" * 20, 2, link_out=True)  # an older version, unused for two days
+    recent = copy("b" * 20, 0.5)  # another fingerprint used hours ago: maybe by a running grader
+    current = copy("c" * 20, 3)  # old, but the one asked for now: it is used, not rebuilt
+    (kind / ".build-x1").mkdir()
+    crashed = _aged(kind / ".build-x1", 2)  # a build interrupted two days ago
+    (kind / ".build-x2").mkdir()  # a build in progress
+    (kind / ".trash-9-9").mkdir()  # left by an interrupted prune
+    (kind / "notes").mkdir()
+    foreign = _aged(kind / "notes", 5)  # not a name the cache makes
+    link = kind / ("d" * 20)
+    link.symlink_to(outside, target_is_directory=True)
+    _aged(link, 5)
+
+    built = []
+    assert sbmod._atomic_dir(current, built.append, prune=True) == current
+    assert built == [] and time.time() - current.stat().st_mtime < 60  # marked as used
+    assert stale.exists()  # nothing new was made: nothing is pruned
+
+    new = sbmod._atomic_dir(kind / ("e" * 20), lambda tmp: (tmp / "x").write_text("1"), prune=True)
+    assert (new / "x").read_text() == "1"
+    left = sorted(p.name for p in kind.iterdir())
+    assert left == sorted([".build-x2", ".lock", "b" * 20, "c" * 20, "d" * 20, "e" * 20, "notes"])
+    assert not stale.exists() and not crashed.exists()
+    assert recent.is_dir() and current.is_dir() and link.is_symlink() and foreign.is_dir()
+    assert (outside / "keep.txt").read_text() == "not the cache's"  # symlinks were not followed
+
+
+def test_sandbox_starts_mark_their_copies_used_and_survive_a_prune(mode, private_cache):
+    stale = private_cache / "ft" / ("a" * 20)  # a flowtrack copy of an older version
+    (stale / "flowtrack").mkdir(parents=True)
+    _aged(stale, 2)
+    src = ("import importlib\ndef where(name):\n"
+           "    return importlib.import_module(name).__file__.rsplit('/flowtrack/', 1)[1]\n")
+    calls = [Call("where", ("flowtrack.camera",))]
+
+    def copies():
+        return sorted(p for p in (private_cache / "ft").iterdir() if p.name[0] != ".")
+
+    with Sandbox([("a", src)], blocked=["flowtrack.kalman"], limits=FAST) as sb:
+        assert sb.run(calls, timeout=30)[0].value == "camera.py"
+    (current,) = copies()  # the one made for this sandbox; the stale one was pruned on making it
+    assert current != stale and not stale.exists()
+    # an old copy is marked as used when a child starts with it ...
+    _aged(current, 3)
+    with Sandbox([("a", src)], blocked=["flowtrack.kalman"], limits=FAST) as sb:
+        assert sb.run(calls, timeout=30)[0].value == "camera.py"
+    assert time.time() - current.stat().st_mtime < 60
+    # ... and one another grader pruned while this process remembered it is made again
+    import shutil
+
+    shutil.rmtree(current)
+    with Sandbox([("a", src)], blocked=["flowtrack.kalman"], limits=FAST) as sb:
+        out = sb.run(calls, timeout=30)[0]
+    assert out.ok and out.value == "camera.py", out
+    assert copies() == [current]

@@ -6,13 +6,16 @@ the answer cells a student fills in, the modules the student's code may not impo
 :class:`~flowtrack.grading.spec.Call`\ s to make and a scorer; expected values are computed in
 ``build`` by the trusted reference (``flowtrack`` itself, or scipy for the Hungarian algorithm) on the
 grader's side and never sent to the student's code. Public tests use small fixed inputs (the ones the
-notebook's visible asserts show); hidden tests draw other inputs from ``rng``, which the grader seeds
-per student with :func:`~flowtrack.grading.spec.student_seed`. Every scorer gives partial credit: the
-fraction of calls (or checks) that pass.
+notebook's visible asserts show) and get ``rng`` seeded with the fixed
+:func:`~flowtrack.grading.grade.public_seed`; hidden tests draw other inputs from ``rng``, which the
+grader seeds per student with :func:`~flowtrack.grading.spec.student_seed`. Every scorer gives partial
+credit: the fraction of calls (or checks) that pass.
 
 ``run_in_process`` runs the same tests on functions found in a namespace dict (the notebook's
-``globals()``): it converts inputs and results to plain data exactly as the sandboxed child does and
-then applies the same scorers. It is what the notebooks' own hidden-test blocks call, so that
+``globals()``): it converts inputs and results to plain data exactly as the sandboxed child does,
+seeds public tests with the same fixed seed as ``flowtrack grade`` and ``flowtrack check`` (a student
+sees the same public inputs in every path), and applies the same scorers with the same clipping (a
+NaN or infinite fraction earns 0). It is what the notebooks' own hidden-test blocks call, so that
 ``nbgrader autograde`` also grades these notebooks (with partial credit). It executes student code
 in the calling process and is therefore **not secure**: flowtrack's grader runs student code only in
 :mod:`flowtrack.grading.sandbox`.
@@ -1143,6 +1146,18 @@ def _call_all(namespace: Mapping[str, Any], calls: Sequence[Call], timeout: floa
     return outcomes
 
 
+def _clip_fraction(fraction: Any) -> float:
+    """A scorer's fraction as ``flowtrack grade`` counts it: clipped to [0, 1], NaN and inf give 0.
+
+    (``min(max(nan, 0.0), 1.0)`` is NaN: Python's ``max``/``min`` keep their first argument when a
+    comparison with NaN is false.)
+    """
+    fraction = float(fraction)
+    if not math.isfinite(fraction):
+        return 0.0
+    return min(1.0, max(0.0, fraction))
+
+
 def run_in_process(
     exercise: Exercise | str,
     namespace: Mapping[str, Any],
@@ -1161,7 +1176,9 @@ def run_in_process(
     namespace : mapping
         Where the student's functions live (a notebook's ``globals()``).
     student : str
-        Seeds the hidden tests' inputs (:func:`~flowtrack.grading.spec.student_seed`).
+        Seeds the hidden tests' inputs (:func:`~flowtrack.grading.spec.student_seed`, without a
+        secret). Public tests always use :func:`~flowtrack.grading.grade.public_seed`, the seed
+        ``flowtrack grade`` and ``flowtrack check`` give them.
     cell : str, optional
         Only the tests of this notebook test cell (``grade_id``).
     hidden : bool, optional
@@ -1172,8 +1189,13 @@ def run_in_process(
     Returns
     -------
     list of (test name, points earned, max points, message)
-        Hidden tests' messages are replaced by their score only.
+        ``points x clip(fraction, 0, 1)`` as in ``flowtrack grade`` (a NaN or infinite fraction
+        earns 0). Hidden tests' messages are replaced by their score only.
     """
+    # Imported here, not at the top: grade imports this module (lazily today); a module-level import
+    # in both directions would be a cycle as soon as either side imports the other eagerly.
+    from .grade import public_seed
+
     ex = get_exercise(exercise)
     results = []
     for test in ex.tests:
@@ -1181,11 +1203,14 @@ def run_in_process(
             continue
         if hidden is not None and test.hidden != hidden:
             continue
-        rng = np.random.default_rng(student_seed(student, ex.id, test.name))
-        calls, scorer = test.build(rng)
+        if test.hidden:
+            seed = student_seed(student, ex.id, test.name)
+        else:
+            seed = public_seed(ex.id, test.name)
+        calls, scorer = test.build(np.random.default_rng(seed))
         outcomes = _call_all(namespace, calls, test.timeout)
         fraction, message = scorer(outcomes)
-        earned = round(test.points * float(min(max(fraction, 0.0), 1.0)), 6)
+        earned = round(test.points * _clip_fraction(fraction), 6)
         if test.hidden:
             message = f"hidden test: {earned:g}/{test.points:g}"
         results.append((test.name, earned, float(test.points), message))

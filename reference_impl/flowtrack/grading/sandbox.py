@@ -49,16 +49,36 @@ blocked packages, ``hidden_paths``, sockets and process spawning. This is best e
 student can get around an in-process hook (e.g. through ctypes), which is why ``flowtrack grade``
 warns when it is not running under bubblewrap. ``FLOWTRACK_SANDBOX=fallback`` forces the fallback,
 ``FLOWTRACK_SANDBOX=bwrap`` requires bubblewrap.
+
+Cache
+-----
+What the sandbox reads is prepared once and kept in ``<tmp>/flowtrack-sandbox-<uid>/`` (``<tmp>`` is
+``$FLOWTRACK_SANDBOX_CACHE`` if set, else the temporary directory, or ``/tmp`` when root's temporary
+directory is private), a directory of this uid that nobody else can write: ``ft/<key>`` filtered
+flowtrack copies, ``python/<key>`` the mirrored runtime and ``site/<key>`` mirrored site-packages
+(root only), ``bin/<key>`` the runner, ``stubs/`` the stubs of blocked packages and ``work/`` the
+students' temporary directories. A copy's ``key`` is a fingerprint of what it was made from, so an
+upgrade of flowtrack or of the Python packages makes new copies. Each start of a child sets the mtime
+of the copies it uses to now (under a shared ``flock`` of ``<kind>/.lock``). Whenever a new copy of
+``ft``, ``python``, ``site`` or ``bin`` is created, the other copies of that kind whose mtime is more
+than a day old (``_PRUNE_AFTER``) are removed, under the exclusive lock: renamed out of the way, then
+deleted without following symlinks. A copy in use was touched when its child started, minutes ago at
+most (in the grader a child serves one student's tests), so it is never that old; one removed while a
+process still remembered it is rebuilt at that process's next start. ``stubs`` (one per blocked
+package, not versioned) and ``work`` are not pruned.
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import functools
 import hashlib
 import itertools
 import json
 import math
 import os
+import re
 import resource
 import select
 import shutil
@@ -91,6 +111,13 @@ _uid_counter = itertools.count()
 _SANDBOX_HOME = "/home/student"
 _OPT = "/opt/flowtrack-sandbox"
 _DISK_POLL = 0.2  # seconds between measurements of the child's directory while waiting for it
+# A cached copy (filtered flowtrack, mirrored runtime or site-packages, runner) not used for this long
+# is removed when a newer copy of its kind is made. Far longer than a child lives (minutes), short
+# enough that upgrades do not pile up copies.
+_PRUNE_AFTER = 24 * 3600.0
+# What the cache's kind directories hold: fingerprints, builds in progress (or crashed) and copies
+# being deleted; anything else is left alone.
+_CACHE_ENTRY = re.compile(r"[0-9a-f]{16,64}|\.build-[^/]+|\.trash-[^/]+")
 
 
 class SandboxUnavailable(RuntimeError):
@@ -191,23 +218,130 @@ def _world_readable(path: Path, read: bool = True) -> bool:
         return False
 
 
-def _atomic_dir(final: Path, build) -> Path:
-    """Build a directory with ``build(tmp)`` and rename it into place (first writer wins)."""
-    if final.is_dir():
+def _atomic_dir(final: Path, build, *, prune: bool = False) -> Path:
+    """Build a directory with ``build(tmp)`` and rename it into place (first writer wins).
+
+    An existing ``final`` is only marked as used (:func:`_mark_used`). With ``prune``, making a new
+    ``final`` also removes its kind's stale copies (:func:`_prune_stale`).
+    """
+    if _mark_used(final):
         return final
     tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=final.parent))
+    created = False
     try:
         build(tmp)
         os.chmod(tmp, 0o755)
         try:
             os.rename(tmp, final)
+            created = True
         except OSError:
             if not final.is_dir():
                 raise
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+    if created and prune:
+        _prune_stale(final.parent, keep=final.name)
     return final
+
+
+@contextlib.contextmanager
+def _kind_lock(kind_dir: Path, exclusive: bool):
+    """``flock`` of ``kind_dir/.lock``: shared to mark a copy used, exclusive to prune."""
+    fd = os.open(kind_dir / ".lock", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _mark_used(copy: Path) -> bool:
+    """Set the mtime of the cached ``copy`` to now; False when it does not exist (not built yet, or
+    pruned since a caller remembered it).
+
+    Done under the shared lock of its kind, so a concurrent :func:`_prune_stale` either sees the new
+    mtime and keeps the copy, or has already moved it away and this returns False.
+    """
+    if not copy.parent.is_dir():  # the whole cache was removed (e.g. by a /tmp cleaner)
+        return False
+    with _kind_lock(copy.parent, exclusive=False):
+        try:
+            st = os.lstat(copy)
+        except FileNotFoundError:
+            return False
+        if not stat.S_ISDIR(st.st_mode):
+            return False
+        try:
+            os.utime(copy)
+        except OSError:
+            pass
+        return True
+
+
+def _live(make, *args, where=lambda path: path):
+    """``make(*args)``, an lru-cached maker of a cached copy, with the copy (``where(value)``, None for
+    no copy) marked as used; made afresh when the copy it remembered is gone (pruned meanwhile)."""
+    value = make(*args)
+    path = where(value)
+    if path is not None and not _mark_used(path):
+        make.cache_clear()
+        value = make(*args)
+    return value
+
+
+def _prune_stale(kind_dir: Path, keep: str, max_age: float = _PRUNE_AFTER) -> list[str]:
+    """Remove the cached copies in ``kind_dir`` other than ``keep`` unused for ``max_age`` seconds.
+
+    Only directories of this uid whose names look like cache entries (:data:`_CACHE_ENTRY`) inside
+    a ``kind_dir`` and cache root of this uid that nobody else can write are considered; symlinks
+    are never followed (nor removed). Under the exclusive lock of the kind each stale copy (and a
+    ``.build-`` left by a crashed build, equally old) is renamed to ``.trash-...``, so no key ever
+    names a half-deleted copy; the renamed trees (and any ``.trash-`` left by an interrupted prune)
+    are deleted after the lock is released.
+
+    Returns
+    -------
+    list of str
+        The names of the copies removed.
+    """
+    uid = os.geteuid()
+    try:
+        for d in (kind_dir.parent, kind_dir):
+            st = os.lstat(d)
+            if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid or st.st_mode & 0o022:
+                return []
+    except OSError:
+        return []
+    removed: list[str] = []
+    trash: list[str] = []
+    with _kind_lock(kind_dir, exclusive=True):
+        now = time.time()
+        with os.scandir(kind_dir) as entries:
+            for e in entries:
+                if e.name == keep or not _CACHE_ENTRY.fullmatch(e.name):
+                    continue
+                try:
+                    st = e.stat(follow_symlinks=False)
+                except OSError:
+                    continue
+                if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid:
+                    continue
+                if e.name.startswith(".trash-"):
+                    trash.append(e.path)
+                    continue
+                if now - st.st_mtime < max_age:
+                    continue
+                dst = os.path.join(kind_dir, f".trash-{os.getpid()}-{time.monotonic_ns()}")
+                try:
+                    os.rename(e.path, dst)
+                except OSError:
+                    continue
+                trash.append(dst)
+                removed.append(e.name)
+    for path in trash:
+        shutil.rmtree(path, ignore_errors=True)  # fd-based on Linux: never follows a symlink
+    return removed
 
 
 def _link_or_copy(src: Path, dst: Path) -> None:
@@ -265,7 +399,7 @@ def _python_runtime(need_world_readable: bool) -> _Runtime:
                 if not os.path.islink(os.path.join(dirpath, f)):
                     _link_or_copy(Path(dirpath) / f, out / f)
 
-    mirror = _atomic_dir(_cache_root() / "python" / key, build)
+    mirror = _atomic_dir(_cache_root() / "python" / key, build, prune=True)
     mirror_std = tuple(str(mirror / Path(p).resolve().relative_to(prefix.resolve())) for p in stdlib_dirs)
     return _Runtime(str(mirror / "bin" / exe.name), str(prefix), str(mirror), mirror_std, str(mirror / "lib"))
 
@@ -306,7 +440,7 @@ def _mirror_site(site: Path) -> Path:
                 else:
                     _link_or_copy(src, out / f)
 
-    return _atomic_dir(_cache_root() / "site" / key, build)
+    return _atomic_dir(_cache_root() / "site" / key, build, prune=True)
 
 
 def _flowtrack_signature() -> str:
@@ -354,7 +488,7 @@ def _filtered_flowtrack(blocked: tuple[str, ...]) -> Path:
             for f in filenames:
                 os.chmod(os.path.join(dirpath, f), 0o644)
 
-    return _atomic_dir(_cache_root() / "ft" / key, build)
+    return _atomic_dir(_cache_root() / "ft" / key, build, prune=True)
 
 
 def _stub_dir(name: str) -> Path:
@@ -376,7 +510,7 @@ def _runner_dir() -> Path:
         (tmp / "_child.py").write_bytes(src)
         os.chmod(tmp / "_child.py", 0o644)
 
-    return _atomic_dir(_cache_root() / "bin" / key, build)
+    return _atomic_dir(_cache_root() / "bin" / key, build, prune=True)
 
 
 def _locate_module(name: str, roots: Sequence[str]) -> Path | None:
@@ -646,7 +780,9 @@ class Sandbox:
 
     def _command(self) -> tuple[list[str], dict[str, str], dict[str, Any], Path]:
         self._uid = _sandbox_uid()
-        runtime = _python_runtime(self._uid is not None)
+        # the cached copies are marked as used at every start (see "Cache" in the module docstring)
+        runtime = _live(_python_runtime, self._uid is not None,
+                        where=lambda r: Path(r.source) if r.lib_dir is not None else None)
         sites = _site_dirs()
         if self._uid is not None:
             sites = [d if _world_readable(Path(d)) else str(_mirror_site(Path(d))) for d in sites]
@@ -657,8 +793,9 @@ class Sandbox:
                     "(a folder on the way is not readable by other users): make it readable, e.g. "
                     f"chmod -R a+rX {unreadable[0]} and chmod o+x on its parent folders"
                 )
-        ft_root = _filtered_flowtrack(tuple(sorted(b for b in self.blocked if b.startswith("flowtrack."))))
-        runner = _runner_dir()
+        ft_blocked = tuple(sorted(b for b in self.blocked if b.startswith("flowtrack.")))
+        ft_root = _live(_filtered_flowtrack, ft_blocked)
+        runner = _live(_runner_dir)
         workdir = Path(tempfile.mkdtemp(prefix="student-", dir=self._workdir_parent))
         # workdir/home is the student's HOME and cwd, workdir/tmp its /tmp: together the only places
         # it can write (measured as one tree, see Limits.disk_bytes).
