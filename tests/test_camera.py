@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from flowtrack.camera import (
     PinholeCamera,
     backproject,
+    depth_from_disparity,
     optical_flow_from_scene_flow,
     project,
     projection_jacobian,
@@ -128,3 +129,76 @@ def test_dt_property(dt):
     """Any non-positive or non-finite time step is rejected with a message naming dt."""
     with pytest.raises(ValueError, match="dt"):
         optical_flow_from_scene_flow([[0.1, 0.2, 1.0]], [[0.0, 0.0, 0.0]], dt, CAM)
+
+
+# -- stereo depth from disparity ------------------------------------------------------------------------
+def test_depth_from_disparity_hand_computed():
+    # KITTI-like rig: f = 700 px, B = 0.54 m, so f B = 378 px m
+    np.testing.assert_allclose(depth_from_disparity([378.0, 70.0, 10.0], 700.0, 0.54), [1.0, 5.4, 37.8],
+                               rtol=1e-15)
+    # with doffs: Z = 4 * 2 / (3 + 5) = 1; disparity 0 is a valid pixel when doffs > 0: Z = 8 / 5
+    np.testing.assert_allclose(depth_from_disparity([3.0, 0.0, -4.0], 4.0, 2.0, doffs=5.0), [1.0, 1.6, 8.0],
+                               rtol=1e-15)
+    # negative doffs: d must exceed -doffs
+    np.testing.assert_allclose(depth_from_disparity([10.0, 2.0], 4.0, 2.0, doffs=-2.0), [1.0, 0.0],
+                               rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("value", "doffs"),
+    [(np.nan, 0.0), (np.inf, 0.0), (-np.inf, 0.0), (0.0, 0.0), (-3.0, 0.0), (-5.0, 5.0), (-6.0, 5.0),
+     (np.nan, 5.0), (np.inf, 5.0), (1.0, -1.0)],
+)
+def test_depth_from_disparity_invalid_values_give_zero(value, doffs):
+    """NaN, +-inf and d + doffs <= 0 are invalid: depth 0, next to a valid pixel that keeps its depth."""
+    Z = depth_from_disparity(np.array([[value, 10.0 - doffs]]), 2.0, 3.0, doffs)
+    assert Z.dtype == np.float64 and Z.shape == (1, 2)
+    assert Z[0, 0] == 0.0 and Z[0, 1] == pytest.approx(0.6, rel=1e-15)
+
+
+def test_depth_from_disparity_overflow_is_invalid_and_shapes_are_kept():
+    assert depth_from_disparity([5e-324], 1e10, 1.0)[0] == 0.0  # f B / d = inf: no depth, not inf
+    assert depth_from_disparity(4.0, 2.0, 1.0).shape == ()
+    d = np.array([[[2.0, np.nan]]])
+    Z = depth_from_disparity(d, 2.0, 1.0)
+    assert Z.shape == (1, 1, 2) and np.isnan(d[0, 0, 1]) and Z[0, 0, 0] == 1.0  # the input is untouched
+    raw = np.array([0, 4], dtype=np.uint16)
+    np.testing.assert_array_equal(depth_from_disparity(raw, 2.0, 1.0), [0.0, 0.5])
+
+
+def test_depth_from_disparity_matches_backproject_convention():
+    """0 is "no depth" for backproject: invalid disparities become NaN points, valid ones Z = f B / d."""
+    cam = PinholeCamera(50.0, 50.0, 1.0, 0.5)
+    disp = np.array([[25.0, np.inf, 0.0], [-1.0, 10.0, np.nan]])
+    pts = backproject(depth_from_disparity(disp, cam.fx, 0.2), cam)
+    valid = np.isfinite(disp) & (disp > 0)
+    assert np.isnan(pts[~valid]).all() and np.isfinite(pts[valid]).all()
+    np.testing.assert_allclose(pts[valid][:, 2], 50.0 * 0.2 / disp[valid], rtol=1e-15)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.05, 200.0), st.floats(1.0, 5000.0), st.floats(0.01, 2.0), st.floats(-50.0, 50.0))
+def test_depth_from_disparity_inverts_the_disparity_of_a_depth(Z, f, B, doffs):
+    """A point at depth Z has disparity d = f B / Z - doffs; converting back gives Z."""
+    d = f * B / Z - doffs
+    assert depth_from_disparity([d], f, B, doffs)[0] == pytest.approx(Z, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "match"),
+    [
+        ({"focal_px": 0.0}, ValueError, "focal_px must be > 0"),
+        ({"focal_px": np.nan}, ValueError, "focal_px must be finite"),
+        ({"baseline": -0.1}, ValueError, "baseline must be > 0"),
+        ({"baseline": np.inf}, ValueError, "baseline must be finite"),
+        ({"doffs": np.nan}, ValueError, "doffs must be finite"),
+        ({"doffs": -np.inf}, ValueError, "doffs must be finite"),
+        ({"doffs": "31"}, TypeError, "doffs must be a real number"),
+        ({"disparity": "abc"}, TypeError, "disparity must be a numeric array"),
+        ({"disparity": None}, TypeError, "disparity must be an array"),
+    ],
+)
+def test_depth_from_disparity_bad_arguments(kwargs, exc, match):
+    args = {"disparity": [1.0, 2.0], "focal_px": 500.0, "baseline": 0.1, "doffs": 0.0, **kwargs}
+    with pytest.raises(exc, match=match):
+        depth_from_disparity(**args)

@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from flowtrack.realdata import motorcycle_cloud, motorcycle_flow_case
+from flowtrack.camera import depth_from_disparity
+from flowtrack.realdata import (
+    MOTORCYCLE_CALIBRATION,
+    motorcycle_cloud,
+    motorcycle_depth,
+    motorcycle_flow_case,
+)
 
 # numbers printed in the docstring of skimage.data.stereo_motorcycle (independent of the module)
 F, CX, CY, DOFFS, B_MM = 994.978, 311.193, 254.877, 31.086, 193.001
@@ -28,6 +34,40 @@ def test_cloud_shape_and_depth_formula(cloud):
     np.testing.assert_allclose(P[:, 2], Z, rtol=1e-12)
     np.testing.assert_allclose(P[:, 0], (pix[:, 1] - CX) / F * Z, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(P[:, 1], (pix[:, 0] - CY) / F * Z, rtol=1e-12, atol=1e-12)
+
+
+def test_calibration_is_the_one_in_the_skimage_docstring():
+    """The numbers above (and the module's) are those the installed scikit-image documents."""
+    from skimage import data
+
+    doc = " ".join(data.stereo_motorcycle.__doc__.split())
+    for label, value, unit in [("Focal length", F, "px"), ("Principal point x", CX, "px"),
+                               ("Principal point y", CY, "px"), ("Principal point dx", DOFFS, "px"),
+                               ("Baseline", B_MM, "mm")]:
+        assert f"{label}: {value}{unit}" in doc
+    c = MOTORCYCLE_CALIBRATION
+    assert (c["f"], c["cx"], c["cy"], c["doffs"], c["baseline_mm"]) == (F, CX, CY, DOFFS, B_MM)
+
+
+def test_depth_by_hand_at_a_few_pixels():
+    """Z = B f / (d + doffs) with the docstring's numbers, at the nearest and farthest pixel, at a pixel
+    in the middle of the bike and at an unknown (inf) pixel; and the shared helper agrees."""
+    from skimage import data
+
+    disp = data.stereo_motorcycle()[2].astype(float)
+    depth, _ = motorcycle_depth()
+    finite = np.where(np.isfinite(disp), disp, np.nan)
+    nearest = np.unravel_index(np.nanargmax(finite), disp.shape)
+    farthest = np.unravel_index(np.nanargmin(finite), disp.shape)
+    pixels = [nearest, farthest, (250, 370)]
+    for r, c in pixels:
+        d = disp[r, c]
+        assert np.isfinite(d)
+        assert depth[r, c] == pytest.approx(B_MM * F / (d + DOFFS) / 1000.0, rel=1e-15)
+    unknown = ~np.isfinite(disp)
+    assert unknown.sum() > 1000 and (depth[unknown] == 0).all() and (depth[~unknown] > 0).all()
+    # the helper with the baseline in metres: the same depths up to rounding
+    np.testing.assert_allclose(depth_from_disparity(disp, F, B_MM / 1000.0, DOFFS), depth, rtol=1e-15, atol=0)
 
 
 def test_metric_scale_plausible(cloud):

@@ -132,6 +132,42 @@ def test_stereo_pfm_and_png_disparity_give_depth(tmp_path, scene):
                 assert (np.abs(Z - f.depth) <= f.depth**2 / (cam.fx * B) * 0.5 / 256 * 1.001 + 1e-12).all()
 
 
+def _stereo_folder(root, disparity, kind):
+    """One frame: a grey left image and ``disparity`` as a PFM (pixels) or a raw 16-bit PNG."""
+    for sub in ("left", "disparity"):
+        (root / sub).mkdir(parents=True)
+    Image.fromarray(np.full((*disparity.shape, 3), 128, dtype=np.uint8)).save(root / "left" / "0.png")
+    if kind == "pfm":
+        write_pfm(root / "disparity" / "0.pfm", disparity)
+    else:
+        Image.fromarray(disparity.astype(np.uint16)).save(root / "disparity" / "0.png")
+    return root
+
+
+def test_stereo_invalid_disparities_by_hand(tmp_path):
+    """f B = 100 px * 0.5 m = 50 px m. PFM: NaN, +-inf and d + doffs <= 0 give depth 0; with doffs = 5 a
+    disparity of 0 or -4 is a real point. PNG: a raw 0 is KITTI's "no measurement", whatever doffs."""
+    disparity = np.array([[25.0, 50.0, 0.0, -4.0], [np.nan, np.inf, -np.inf, -5.0]])
+    pfm = _stereo_folder(tmp_path / "pfm", disparity, "pfm")
+    Z = load_stereo_sequence(pfm, intrinsics="100,100,2,1", baseline=0.5, doffs=5.0).depth[0]
+    np.testing.assert_allclose(Z, [[50 / 30, 50 / 55, 50 / 5, 50 / 1], [0, 0, 0, 0]], rtol=1e-15, atol=0)
+    Z = load_stereo_sequence(pfm, intrinsics="100,100,2,1", baseline=0.5).depth[0]
+    np.testing.assert_allclose(Z, [[2, 1, 0, 0], [0, 0, 0, 0]], rtol=1e-15, atol=0)
+
+    png = _stereo_folder(tmp_path / "png", np.array([[0, 256, 512, 1280]]), "png")
+    Z = load_stereo_sequence(png, intrinsics="100,100,2,1", baseline=0.5, doffs=5.0).depth[0]
+    np.testing.assert_allclose(Z, [[0, 50 / 6, 50 / 7, 50 / 10]], rtol=1e-15, atol=0)
+    Z = load_stereo_sequence(png, intrinsics="100,100,2,1", baseline=0.5, disparity_scale=128.0).depth[0]
+    np.testing.assert_allclose(Z, [[0, 25, 12.5, 5]], rtol=1e-15, atol=0)
+
+
+@pytest.mark.parametrize(("doffs", "exc"), [(np.nan, ValueError), (np.inf, ValueError), ("5", TypeError)])
+def test_stereo_bad_doffs_is_named(tmp_path, doffs, exc):
+    root = _stereo_folder(tmp_path / "s", np.ones((2, 3)), "pfm")
+    with pytest.raises(exc, match="doffs"):
+        load_stereo_sequence(root, intrinsics="100,100,2,1", baseline=0.5, doffs=doffs)
+
+
 def test_pfm_reader_is_bottom_to_top_and_checks_the_header(tmp_path):
     img = np.arange(12, dtype=np.float64).reshape(3, 4)
     # a big-endian file written by hand: rows bottom to top, positive scale

@@ -186,12 +186,38 @@ def test_occlusion_scenario_hides_object_1():
     assert all(1 in d for d in sc.ground_truth_tracks(min_visible=0))
 
 
-def test_crossing_scenario_swaps_image_order():
-    sc = make_scene(n_frames=20, image_size=(120, 160), scenario="crossing", seed=0)
+@pytest.mark.parametrize("scenario", ["crossing", "mixed"])
+def test_crossing_scenarios_swap_image_order(scenario):
+    """In both scenarios object 1 passes in front of object 2: nearer all along, and the two swap sides."""
+    sc = make_scene(n_objects=3, n_frames=20, image_size=(120, 160), scenario=scenario, seed=0)
     tr = sc.ground_truth_tracks(coords="image", min_visible=0)
     assert (tr[0][1][0] - tr[0][2][0]) * (tr[-1][1][0] - tr[-1][2][0]) < 0
+    assert all(d[1][2] < d[2][2] for d in sc.ground_truth_tracks(coords="camera", min_visible=0))
     vis2 = np.array([f.visible[2] for f in sc.frames])
     assert vis2.min() < 0.7 * vis2.max()  # partly hidden by object 1 while crossing
+
+
+def test_mixed_scenario_hides_object_3_behind_a_static_box():
+    sc = make_scene(n_frames=20, image_size=(120, 160), scenario="mixed", seed=1)
+    vis3 = np.array([f.visible[3] for f in sc.frames])
+    assert vis3[0] > 0 and vis3[-1] > 0 and (vis3 == 0).sum() >= 2
+    occluders = [b for b in sc.static_bodies if isinstance(b.shape, Box)]
+    assert len(occluders) == 1 and occluders[0].label == 0
+
+
+@pytest.mark.parametrize(("scenario", "scripted", "occluders"),
+                         [("crossing", 2, 0), ("occlusion", 1, 1), ("mixed", 3, 1), ("default", 0, 0)])
+def test_scripted_objects_slide_straight_and_the_rest_randomly(scenario, scripted, occluders):
+    """Scripted objects (ids 1..) rest on the table on straight paths of the requested kind; the others
+    get the random curved paths; scripted scenarios with an occluder have one static box."""
+    kinds = ["cylinder", "box", "cylinder", "box"]
+    sc = make_scene(n_objects=4, n_frames=3, image_size=(30, 40), scenario=scenario, seed=1, shapes=kinds,
+                    speed=(0.02, 0.04))  # slow, so that object 4 finds room beside the scripted paths
+    assert [type(sc.objects[k]).__name__.lower() for k in (1, 2, 3, 4)] == kinds
+    for k, tr in sc.trajectories.items():
+        assert tr.z == sc.objects[k].half_height
+        assert (tr.bend == 0.0) == (k <= scripted)
+    assert sum(isinstance(b.shape, Box) for b in sc.static_bodies) == occluders
 
 
 @pytest.mark.parametrize(
@@ -205,7 +231,9 @@ def test_crossing_scenario_swaps_image_order():
         ({"seed": "a"}, TypeError, "seed"),
         ({"scenario": "bogus"}, ValueError, "scenario"),
         ({"colour": 1}, TypeError, "colour"),
-        ({"n_objects": 1, "scenario": "crossing"}, ValueError, "n_objects"),
+        ({"n_objects": 1, "scenario": "crossing"}, ValueError, "n_objects must be >= 2 for scenario='cross"),
+        ({"n_objects": 2, "scenario": "mixed"}, ValueError, "n_objects must be >= 3 for scenario='mixed'"),
+        ({"n_objects": 0, "scenario": "occlusion"}, ValueError, "n_objects must be >= 1 for scenario='occl"),
         ({"shapes": ["box"]}, ValueError, "shapes"),
     ],
 )

@@ -20,13 +20,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import as_array, positive
+from ._validation import _scalar, as_array, positive
 
 __all__ = [
     "PinholeCamera",
     "project",
     "projection_jacobian",
     "backproject",
+    "depth_from_disparity",
     "optical_flow_from_scene_flow",
     "scene_flow_from_optical_flow",
 ]
@@ -215,6 +216,66 @@ def backproject(depth, cam: PinholeCamera, depth_scale: float = 1.0) -> np.ndarr
     H, W = Z.shape
     v, u = np.mgrid[0:H, 0:W].astype(np.float64)
     return _backproject_pixels(u, v, Z, cam)
+
+
+def depth_from_disparity(disparity, focal_px: float, baseline: float, doffs: float = 0.0) -> np.ndarray:
+    r"""Depth :math:`Z = f B / (d + d_\mathrm{offs})` of a rectified stereo pair, 0 where there is none.
+
+    A left-image pixel with disparity :math:`d` (pixels; its match in the right image is :math:`d`
+    columns to the left) lies at depth :math:`Z = f B / (d + d_\mathrm{offs})`, with :math:`f` the
+    focal length (pixels), :math:`B` the baseline and :math:`d_\mathrm{offs}` the column difference
+    of the two principal points (Middlebury's ``doffs``, 0 for most rigs, e.g. KITTI).
+
+    A disparity is invalid where it is NaN or :math:`\pm\infty` (Middlebury's "unknown" is ``inf``)
+    or where :math:`d + d_\mathrm{offs} \le 0` (no point in front of the cameras); its depth is 0,
+    the package's "no depth" value (as in TUM depth images; :func:`backproject` turns 0 into NaN
+    points). A format whose files mark "no measurement" with ``d = 0`` (KITTI and older Middlebury
+    PNGs) must be masked first when ``doffs > 0``, since :math:`0 + d_\mathrm{offs} > 0` is a valid
+    disparity here.
+
+    Parameters
+    ----------
+    disparity : array_like
+        Disparities in pixels, any shape; NaN and inf mark invalid pixels.
+    focal_px : float, > 0
+        Focal length :math:`f` in pixels (``fx`` of the rectified left camera).
+    baseline : float, > 0
+        Distance :math:`B` between the camera centres. The depth has the same unit: give metres
+        for the metric depth the rest of the package expects.
+    doffs : float
+        :math:`d_\mathrm{offs}`, added to the disparity before the division (finite).
+
+    Returns
+    -------
+    ndarray, float64, same shape as ``disparity``
+        :math:`Z`, finite and > 0 at the valid pixels and 0 at the invalid ones (also where
+        :math:`f B / (d + d_\mathrm{offs})` overflows).
+
+    Raises
+    ------
+    TypeError
+        A non-numeric ``disparity`` or a non-real scalar argument.
+    ValueError
+        ``focal_px`` or ``baseline`` not finite and > 0, ``doffs`` not finite (each named).
+
+    Examples
+    --------
+    >>> depth_from_disparity([[40.0, 20.0, 0.0, np.inf, np.nan]], focal_px=500.0, baseline=0.1)
+    array([[1.25, 2.5 , 0.  , 0.  , 0.  ]])
+    >>> depth_from_disparity([0.0, -10.0, -20.0], 500.0, 0.1, doffs=10.0)  # -10 + 10 is not > 0
+    array([5., 0., 0.])
+    """
+    d = as_array(disparity, "disparity", finite=False, copy=False)
+    f = positive(focal_px, "focal_px")
+    B = positive(baseline, "baseline")
+    doffs = _scalar(doffs, "doffs")
+    dd = d + doffs
+    valid = np.isfinite(dd) & (dd > 0)
+    Z = np.zeros(dd.shape)
+    with np.errstate(over="ignore"):
+        Z[valid] = f * B / dd[valid]
+    Z[~np.isfinite(Z)] = 0.0
+    return Z
 
 
 def optical_flow_from_scene_flow(X, v, dt: float, cam: PinholeCamera) -> np.ndarray:

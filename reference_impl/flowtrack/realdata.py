@@ -14,9 +14,10 @@ baseline B             193.001 mm
 =====================  ===============
 
 A left pixel :math:`(r, c)` with disparity :math:`d` has depth
-:math:`Z = B f / (d + d_\mathrm{offs})` (mm, converted to metres) and back-projects with the
-pinhole model of :mod:`flowtrack.camera`, :math:`X = Z ((c - c_x)/f, (r - c_y)/f, 1)`. Invalid
-disparities (``inf``, or NaN in older scikit-image versions) are dropped.
+:math:`Z = B f / (d + d_\mathrm{offs})` (mm, converted to metres;
+:func:`flowtrack.camera.depth_from_disparity`) and back-projects with the pinhole model of
+:mod:`flowtrack.camera`, :math:`X = Z ((c - c_x)/f, (r - c_y)/f, 1)`. Invalid disparities (``inf``,
+or NaN in older scikit-image versions) get depth 0 and are dropped from the clouds.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 
 from ._graph import apply_transform
 from ._validation import _scalar, nonnegative, positive, positive_int
-from .camera import PinholeCamera, _backproject_pixels
+from .camera import PinholeCamera, _backproject_pixels, depth_from_disparity
 
 __all__ = [
     "FRONT_WHEEL_PIXELS",
@@ -80,11 +81,11 @@ def _load():
 
 
 def _depth(disp: np.ndarray) -> np.ndarray:
+    """Metres, 0 where the disparity is invalid."""
     c = MOTORCYCLE_CALIBRATION
-    ok = np.isfinite(disp) & (disp + c["doffs"] > 0)
-    depth = np.zeros(disp.shape)
-    depth[ok] = c["baseline_mm"] * c["f"] / (disp[ok] + c["doffs"]) / 1000.0
-    return depth
+    # the baseline in mm gives the depth in mm; divided by 1000 afterwards (rather than passing
+    # baseline_mm / 1000) so that every depth is rounded exactly as it always was
+    return depth_from_disparity(disp, c["f"], c["baseline_mm"], c["doffs"]) / 1000.0
 
 
 def motorcycle_depth() -> tuple[np.ndarray, np.ndarray]:

@@ -21,8 +21,10 @@ the closest pairs are taken first, greedily, each frame at most once. Without ``
 
 Depth from disparity :math:`d` (pixels) with focal length :math:`f` (pixels) and baseline :math:`B`
 (metres) is :math:`Z = f B / (d + d_\text{offs})` (:math:`d_\text{offs}`: the principal points'
-column difference, 0 for most rigs; Middlebury lists it as ``doffs``). Disparities :math:`\le 0`,
-NaN or inf are invalid (depth 0).
+column difference, 0 for most rigs; Middlebury lists it as ``doffs``), computed by
+:func:`flowtrack.camera.depth_from_disparity`. Depth 0 (none) where the disparity is NaN or inf (a
+PFM's "unknown", Middlebury 2014 uses inf), where :math:`d + d_\text{offs} \le 0`, and where a
+16-bit PNG holds 0 (KITTI's "no measurement", whatever :math:`d_\text{offs}`).
 
 Intrinsics are never guessed: give them as ``"fx,fy,cx,cy"``, a file, a preset name of
 :data:`INTRINSICS_PRESETS` or an ``intrinsics.txt`` next to the frames.
@@ -44,8 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validation import positive, positive_int
-from .camera import PinholeCamera
+from ._validation import _scalar, positive, positive_int
+from .camera import PinholeCamera, depth_from_disparity
 
 __all__ = [
     "INTRINSICS_PRESETS",
@@ -560,9 +562,10 @@ def load_stereo_sequence(
     baseline : float, > 0
         Distance between the two camera centres (m). Required.
     disparity_scale : float, > 0
-        For 16-bit PNG disparity maps: raw units per pixel (KITTI: 256). PFM maps are in pixels.
+        For 16-bit PNG disparity maps: raw units per pixel (KITTI: 256); a raw 0 means no
+        measurement. PFM maps are in pixels, NaN or inf for unknown.
     doffs : float
-        Added to the disparity before the division (Middlebury's ``doffs``).
+        Added to the disparity before the division (Middlebury's ``doffs``); finite.
     max_frames, step : see :func:`load_tum_sequence`
     dt : float, > 0
         Frame interval (s).
@@ -570,11 +573,12 @@ def load_stereo_sequence(
     Returns
     -------
     RGBDSequence
+        Depth from :func:`flowtrack.camera.depth_from_disparity`, 0 at invalid disparities.
 
     Raises
     ------
     FileNotFoundError, ValueError
-        As :func:`load_tum_sequence`; also a missing ``baseline``.
+        As :func:`load_tum_sequence`; also a missing ``baseline`` or a non-finite ``doffs``.
     """
     root = Path(root)
     _require_dir(root, "input folder")
@@ -582,6 +586,7 @@ def load_stereo_sequence(
         raise ValueError("baseline missing: a stereo input needs the baseline in metres (--baseline)")
     baseline = positive(baseline, "baseline")
     disparity_scale = positive(disparity_scale, "disparity_scale")
+    doffs = _scalar(doffs, "doffs")
     dt = positive(dt, "dt")
     _require_dir(root / "left", "left/ folder of")
     _require_dir(root / "disparity", "disparity/ folder of")
@@ -610,17 +615,15 @@ def load_stereo_sequence(
             img = _open_image(disps[i], "disparity")
             if img.mode not in ("I;16", "I;16B", "I;16L", "I"):
                 raise ValueError(f"disparity PNG {disps[i]} must be 16-bit, got PIL mode {img.mode!r}")
-            d = np.asarray(img, dtype=np.float64) / disparity_scale
+            raw = np.asarray(img, dtype=np.float64)
+            d = np.where(raw > 0, raw / disparity_scale, np.nan)  # raw 0: no measurement, even if doffs > 0
         if c.shape[:2] != d.shape:
             raise ValueError(f"left {lefts[i]} is {c.shape[1]}x{c.shape[0]} but disparity {disps[i]} is "
                              f"{d.shape[1]}x{d.shape[0]}")
         if cam is None:
             cam = _resolve_intrinsics(intrinsics, root, d.shape[1], d.shape[0])
-        dd = d + doffs
-        with np.errstate(divide="ignore", invalid="ignore"):
-            Z = np.where(np.isfinite(dd) & (dd > 0) & (d > 0), cam.fx * baseline / dd, 0.0)
         rgb.append(c)
-        depth.append(Z)
+        depth.append(depth_from_disparity(d, cam.fx, baseline, doffs))
         files.append((str(lefts[i]), str(disps[i])))
     stamps = np.arange(len(depth), dtype=np.float64) * dt
     return RGBDSequence(cam, rgb, depth, stamps, source=str(root), files=files)

@@ -800,6 +800,60 @@ def _straight_trajectory(rng, p0, p1, duration, shape, opts) -> PlanarTrajectory
     return PlanarTrajectory(p0, p1, duration, shape.half_height, theta0, omega, 0.0)
 
 
+#: Fewest moving objects each scripted scenario needs (its scripted objects are ids 1..n).
+_SCENARIO_MIN_OBJECTS = {"crossing": 2, "occlusion": 1, "mixed": 3}
+_LOW = (0.04, 0.04, 0.035)  # half extents of the low object that gets crossed
+_SMALL = (0.03, 0.03, 0.035)  # half extents of the small object that hides behind an occluder
+
+
+def _upright(kind: str, half_extents: tuple) -> Box | Cylinder:
+    """``Box(half_extents)``; for ``kind="cylinder"`` the cylinder of radius ``a``, half height ``c``."""
+    a, b, c = half_extents
+    return Box((a, b, c)) if kind == "box" else Cylinder(a, c)
+
+
+def _scenario_script(scenario: str, kinds: Sequence[str]) -> tuple[dict, tuple | None]:
+    """What a scripted scenario places, as data: no randomness here.
+
+    Returns
+    -------
+    paths : dict[int, (Box | Cylinder, (float, float), (float, float))]
+        Object id -> (shape, start, end) of a straight path on the table (world x-y at t = 0 and at
+        the end of the sequence); empty for ``"default"``.
+    occluder : ((float, float, float), (float, float)) or None
+        Half extents and world x-y of the static box standing on the table.
+    """
+    if scenario == "crossing":
+        # a tall object 1 near the camera crosses in front of a low object 2 further away
+        s1, s2 = _upright(kinds[0], (0.05, 0.045, 0.09)), _upright(kinds[1], _LOW)
+        y1, y2 = 0.02 + s1.radius, 0.40 - s2.radius
+        x = _X_RANGE[1] - max(s1.radius, s2.radius) - 0.01
+        return {1: (s1, (-x, y1), (x, y1)), 2: (s2, (x, y2), (-x, y2))}, None
+    if scenario == "occlusion":
+        # object 1 (small, low) slides behind a static tall box standing between it and the camera
+        s1 = _upright(kinds[0], _SMALL)
+        return {1: (s1, (-0.26, 0.36), (0.26, 0.36))}, ((0.075, 0.03, 0.13), (0.0, 0.10))
+    if scenario == "mixed":
+        # the crossing pair on shorter paths: 1 (taller, near) passes in front of 2 (low, middle of the
+        # table) around the middle of the sequence; and 3 (small, far) slides behind a static box
+        s1, s2 = _upright(kinds[0], (0.045, 0.04, 0.11)), _upright(kinds[1], _LOW)
+        s3 = _upright(kinds[2], _SMALL)
+        y1, y3 = 0.01 + s1.radius, 0.44 - s3.radius
+        paths = {1: (s1, (-0.2, y1), (0.16, y1)), 2: (s2, (0.2, 0.22), (-0.2, 0.22)),
+                 3: (s3, (-0.05, y3), (0.3, y3))}
+        return paths, ((0.05, 0.02, 0.07), (0.15, 0.31))
+    return {}, None
+
+
+def _static_occluder(half_extents: tuple, xy: tuple, T_cw: np.ndarray, duration: float, tex: float):
+    """The grey box standing on the table at world ``xy`` (a label-0 Body) and its footprint disc."""
+    occ = Box(half_extents)
+    T_wocc = np.eye(4)
+    T_wocc[:3, 3] = [xy[0], xy[1], occ.half_extents[2]]
+    body = Body(occ, T_cw @ T_wocc, 0, (110.0, 110.0, 110.0), 0.03 * tex)
+    return body, (PlanarTrajectory(xy, xy, duration, 0.0), occ.radius)
+
+
 def _parse_options(options: dict) -> dict:
     unknown = set(options) - set(_OPTIONS)
     if unknown:
@@ -852,7 +906,7 @@ def make_scene(
         ``"occlusion"`` (a static tall box, label 0, hides object 1 completely for a few frames
         in the middle; needs ``n_objects >= 1``) or ``"mixed"`` (both at once, the demo's scene:
         objects 1 and 2 cross as in ``"crossing"`` on shorter paths, object 3 slides behind a
-        static box on the right and is hidden for a few frames in the first half; needs
+        static box on the right and is hidden for a few frames just after the middle; needs
         ``n_objects >= 3``). Remaining objects move randomly.
         ``shapes`` : sequence of ``"box"``/``"cylinder"`` per object (default: alternate, random
         start). ``speed`` : ``(low, high)`` translation speed range in m/s (default (0.06, 0.15)).
@@ -898,12 +952,9 @@ def make_scene(
         raise TypeError(f"seed must be an int or None, got {type(seed).__name__}")
     opts = _parse_options(options)
     scenario = opts["scenario"]
-    if scenario == "crossing" and n_objects < 2:
-        raise ValueError(f"n_objects must be >= 2 for scenario='crossing', got {n_objects}")
-    if scenario == "occlusion" and n_objects < 1:
-        raise ValueError(f"n_objects must be >= 1 for scenario='occlusion', got {n_objects}")
-    if scenario == "mixed" and n_objects < 3:
-        raise ValueError(f"n_objects must be >= 3 for scenario='mixed', got {n_objects}")
+    needed = _SCENARIO_MIN_OBJECTS.get(scenario, 0)
+    if n_objects < needed:
+        raise ValueError(f"n_objects must be >= {needed} for scenario={scenario!r}, got {n_objects}")
 
     rng = np.random.default_rng(seed)
     noise_rng = np.random.default_rng(rng.integers(2**63))
@@ -936,48 +987,19 @@ def make_scene(
         T_ww[:3, :3] = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
         T_ww[:3, 3] = [0.0, 1.0, 0.0]
         static_bodies.append(Body(Plane(), T_cw @ T_ww, 0, (150.0, 170.0, 190.0), 0.1 * tex))
+    # scripted objects (straight paths, random spin) replace the first random shapes; the rest move randomly
+    paths, occluder = _scenario_script(scenario, kinds)
     static_discs = []
-
+    if occluder is not None:
+        body, disc = _static_occluder(*occluder, T_cw, duration, tex)
+        static_bodies.append(body)
+        static_discs = [disc]
     trajectories: dict[int, PlanarTrajectory] = {}
     placed = []
-    if scenario == "crossing":
-        # a tall object 1 near the camera crosses in front of a low object 2 further away
-        objects[1] = Box((0.05, 0.045, 0.09)) if kinds[0] == "box" else Cylinder(0.05, 0.09)
-        objects[2] = Box((0.04, 0.04, 0.035)) if kinds[1] == "box" else Cylinder(0.04, 0.035)
-        s1, s2 = objects[1], objects[2]
-        y_near, y_far = 0.02 + s1.radius, 0.40 - s2.radius
-        x1 = _X_RANGE[1] - max(s1.radius, s2.radius) - 0.01
-        trajectories[1] = _straight_trajectory(rng, (-x1, y_near), (x1, y_near), duration, s1, opts)
-        trajectories[2] = _straight_trajectory(rng, (x1, y_far), (-x1, y_far), duration, s2, opts)
-        placed = [(trajectories[1], s1.radius), (trajectories[2], s2.radius)]
-    elif scenario == "occlusion":
-        # object 1 (small, low) slides behind a static tall box standing between it and the camera
-        objects[1] = Box((0.03, 0.03, 0.035)) if kinds[0] == "box" else Cylinder(0.03, 0.035)
-        occ = Box((0.075, 0.03, 0.13))
-        T_wocc = np.eye(4)
-        T_wocc[:3, 3] = [0.0, 0.10, occ.half_extents[2]]
-        static_bodies.append(Body(occ, T_cw @ T_wocc, 0, (110.0, 110.0, 110.0), 0.03 * tex))
-        static_discs = [(PlanarTrajectory((0.0, 0.10), (0.0, 0.10), duration, 0.0), occ.radius)]
-        x1 = 0.26
-        trajectories[1] = _straight_trajectory(rng, (-x1, 0.36), (x1, 0.36), duration, objects[1], opts)
-        placed = [(trajectories[1], objects[1].radius)]
-    elif scenario == "mixed":
-        # 1 (tall, near) crosses in front of 2 (low, middle) around the middle of the sequence and
-        # hides it for a few frames; 3 (small, low, far) slides left to right behind a static box
-        objects[1] = Box((0.045, 0.04, 0.11)) if kinds[0] == "box" else Cylinder(0.045, 0.11)
-        objects[2] = Box((0.04, 0.04, 0.035)) if kinds[1] == "box" else Cylinder(0.04, 0.035)
-        objects[3] = Box((0.03, 0.03, 0.035)) if kinds[2] == "box" else Cylinder(0.03, 0.035)
-        s1, s2, s3 = objects[1], objects[2], objects[3]
-        y1, y2, y3 = 0.01 + s1.radius, 0.22, 0.44 - s3.radius
-        trajectories[1] = _straight_trajectory(rng, (-0.2, y1), (0.16, y1), duration, s1, opts)
-        trajectories[2] = _straight_trajectory(rng, (0.2, y2), (-0.2, y2), duration, s2, opts)
-        trajectories[3] = _straight_trajectory(rng, (-0.05, y3), (0.3, y3), duration, s3, opts)
-        occ = Box((0.05, 0.02, 0.07))
-        T_wocc = np.eye(4)
-        T_wocc[:3, 3] = [0.15, 0.31, occ.half_extents[2]]
-        static_bodies.append(Body(occ, T_cw @ T_wocc, 0, (110.0, 110.0, 110.0), 0.03 * tex))
-        static_discs = [(PlanarTrajectory((0.15, 0.31), (0.15, 0.31), duration, 0.0), occ.radius)]
-        placed = [(trajectories[k], objects[k].radius) for k in (1, 2, 3)]
+    for k, (shape, p0, p1) in paths.items():
+        objects[k] = shape
+        trajectories[k] = _straight_trajectory(rng, p0, p1, duration, shape, opts)
+        placed.append((trajectories[k], shape.radius))
     for k in objects:
         if k in trajectories:
             continue
