@@ -16,7 +16,7 @@ from flowtrack.synth import make_scene
 
 FRAMES, AHEAD = 12, 3
 PROMISED = ("flow_field.png", "clusters_3d.png", "trajectories.png", "tracks.gif", "motorcycle_flow.png",
-            "metrics.json", "metrics.md", "report.html")
+            "tud_campus_tracks.png", "metrics.json", "metrics.md", "report.html")
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +104,7 @@ def test_report_is_self_contained(demo_out):
     assert "link" not in parser.tags and "iframe" not in parser.tags
     assert all(ref.startswith("#") for _, ref in parser.refs), parser.refs  # only in-page anchors
     assert "http://" not in text and "https://" not in text
-    assert len(parser.imgs) >= 5  # flow field, clusters, trajectories, GIF, Motorcycle: all embedded
+    assert len(parser.imgs) >= 6  # flow field, clusters, trajectories, GIF, Motorcycle, TUD-Campus
     formats = set()
     for src in parser.imgs:
         head, _, payload = src.partition(",")
@@ -226,3 +226,256 @@ def test_detect_objects_bad_input(kwargs, match):
     args = {"points": np.zeros((5, 3)), "clusters": np.zeros(5, dtype=int), "flow": np.zeros((5, 3))} | kwargs
     with pytest.raises(ValueError, match=match):
         detect_objects(cfg=DemoConfig(), **args)
+
+
+# ------------------------------------------------------------------------------------------------
+# the TUD-Campus figure
+# ------------------------------------------------------------------------------------------------
+def _section_html(text: str, title_part: str) -> str:
+    """The HTML of the report section whose title contains ``title_part`` (up to the next one)."""
+    parts = text.split("<h2 ")
+    hits = [p for p in parts[1:] if title_part in p.split("</h2>")[0]]
+    assert len(hits) == 1, title_part
+    return hits[0]
+
+
+def test_tud_campus_section_has_its_figure(demo_out, summary):
+    html = _section_html((demo_out / "report.html").read_text(encoding="utf-8"), "TUD-Campus")
+    assert html.count("<img ") == 1 and "data:image/png;base64," in html
+    assert "<table>" in html  # the metrics table is still there
+    assert summary["figures"]["tud_campus"].endswith("tud_campus_tracks.png")
+    with Image.open(demo_out / "tud_campus_tracks.png") as im:
+        assert im.format == "PNG" and im.width >= 1000
+
+
+def test_tud_campus_figure_shows_the_scored_run():
+    """The frames behind the figure are the run that track_tud_campus scores, matched as clear_mot does."""
+    from flowtrack.demo import _mot_matches, _tud_campus_frames
+    from flowtrack.metrics import clear_mot
+    from flowtrack.realdata import track_tud_campus
+
+    for seed in (0, 1):
+        centres, hyp, max_dist = _tud_campus_frames(seed)
+        scored = track_tud_campus(seed=seed)
+        mine = clear_mot(centres, hyp, max_dist)
+        for key in ("mota", "motp", "idf1", "id_switches", "fp", "fn", "matches", "num_objects"):
+            assert mine[key] == scored[key], (seed, key)
+        matches, switches = _mot_matches(centres, hyp, max_dist)
+        assert len(switches) == mine["id_switches"] > 0
+        assert sum(map(len, matches)) == mine["matches"] + mine["id_switches"]
+        assert sum(len(f) for f in hyp) - sum(map(len, matches)) == mine["fp"]
+
+
+def test_mot_matches_agree_with_clear_mot_on_random_frames():
+    from flowtrack.demo import _mot_matches
+    from flowtrack.metrics import clear_mot
+
+    rng = np.random.default_rng(5)
+    for _ in range(30):
+        T = int(rng.integers(1, 12))
+        gt = [{o: rng.uniform(0, 4, 2) for o in range(5) if rng.random() < 0.8} for _ in range(T)]
+        hyp = [{h: rng.uniform(0, 4, 2) for h in "abcdef" if rng.random() < 0.7} for _ in range(T)]
+        matches, switches = _mot_matches(gt, hyp, 1.0)
+        m = clear_mot(gt, hyp, 1.0)
+        assert len(switches) == m["id_switches"]
+        assert sum(map(len, matches)) == m["num_detections"]
+        for t, pairs in enumerate(matches):
+            assert len(set(pairs.values())) == len(pairs)  # one object per hypothesis
+            for o, h in pairs.items():
+                assert np.linalg.norm(gt[t][o] - hyp[t][h]) <= 1.0
+
+
+# ------------------------------------------------------------------------------------------------
+# the "Reproduce" box
+# ------------------------------------------------------------------------------------------------
+def _reproduce_box(out) -> str:
+    html = _section_html((out / "report.html").read_text(encoding="utf-8"), "Reproduce")
+    return html.split("<pre>")[1].split("</pre>")[0]
+
+
+def test_reproduce_box_shows_the_options_of_this_run(demo_out, summary):
+    import html
+    import shlex
+
+    cmd = summary["reproduce"]
+    assert shlex.split(cmd) == ["flowtrack", "demo", "--out", str(demo_out), "--frames", str(FRAMES),
+                                "--height", "180", "--width", "240", "--predict-ahead", str(AHEAD)]
+    assert html.unescape(_reproduce_box(demo_out)).splitlines()[0] == cmd
+
+
+_SYNTH = dict(n_objects=3, n_frames=24, image_size=(240, 320), seed=0, noise=0.002, config=None,
+              scenario="mixed", predict_ahead=5, input_dir=None, input_options=None, real_data=True, gif=True)
+# what `flowtrack demo` passes as input_options (TUM RGB-D and stereo), and options an API caller may pass
+_TUM_CLI = {"intrinsics": "tum-fr1", "step": 1, "depth_scale": 5000.0, "max_difference": 0.02, "dt": None}
+_STEREO_CLI = {"intrinsics": "1,1,1,1", "step": 1, "stereo": True, "baseline": 0.5, "disparity_scale": 256.0,
+               "doffs": 0.0, "dt": 0.1}
+
+
+@pytest.mark.parametrize("change", [
+    {},
+    {"n_frames": 7, "seed": 4, "predict_ahead": 2, "gif": False, "real_data": False},
+    {"n_objects": 4, "scenario": "crossing", "image_size": (120, 160)},
+    {"input_dir": "my seq", "input_options": _TUM_CLI},
+    {"input_dir": "seq", "seed": 2, "n_frames": 9, "n_objects": 5,  # n_objects: ignored with input
+     "input_options": _TUM_CLI | {"step": 3, "depth_scale": 1000.0, "max_difference": 0.05, "dt": 1 / 30,
+                                  "intrinsics": (525.0, 525.0, 319.5, 239.5)}},
+    {"input_dir": "st", "input_options": _STEREO_CLI},
+    {"input_dir": "st", "gif": False,
+     "input_options": _STEREO_CLI | {"disparity_scale": 100.0, "doffs": 31.086, "dt": 0.2, "step": 2}},
+    {"input_dir": "seq", "input_options": {"intrinsics": "2,2,1,1"}},  # an API call: CLI defaults omitted
+])
+def test_reproduce_command_round_trips_through_the_cli(change, monkeypatch, tmp_path):
+    """The command of the box, parsed by `flowtrack demo`, calls run_demo with the same arguments."""
+    import inspect
+    import shlex
+
+    import flowtrack.demo as demo
+    from flowtrack.rgbd_io import load_stereo_sequence, load_tum_sequence
+
+    kwargs = _SYNTH | {"out": str(tmp_path / "o u t")} | change
+    cmd = demo._reproduce_command(**kwargs)
+    argv = shlex.split(cmd)
+    assert argv[:2] == ["flowtrack", "demo"], cmd
+    seen = {}
+    monkeypatch.setattr(demo, "run_demo", lambda **kw: seen.update(kw))
+    assert main(argv[1:]) == 0
+    keys = ["n_frames", "seed", "predict_ahead", "real_data", "gif", "input_dir"]
+    if kwargs["input_dir"] is None:
+        keys += ["n_objects", "image_size", "scenario"]
+    assert str(seen["out"]) == kwargs["out"]
+    assert {k: seen[k] for k in keys} == {k: kwargs[k] for k in keys}, cmd
+    if kwargs["input_dir"] is not None:
+        def effective(opts):  # every loader keyword the CLI can set, None and absent meaning the default
+            opts = dict(opts)
+            loader = load_stereo_sequence if opts.pop("stereo", False) else load_tum_sequence
+            d = {k: p.default for k, p in inspect.signature(loader).parameters.items()
+                 if k not in ("root", "max_frames")}
+            d.update({k: v for k, v in opts.items() if v is not None})
+            if not isinstance(d["intrinsics"], str):
+                d["intrinsics"] = ",".join(repr(float(v)) for v in d["intrinsics"])
+            return d
+
+        assert bool(seen["input_options"].get("stereo")) == bool(kwargs["input_options"].get("stereo"))
+        assert effective(seen["input_options"]) == effective(kwargs["input_options"]), cmd
+
+
+@pytest.mark.parametrize("change", [
+    {"noise": 0.004},
+    {"config": DemoConfig(lam=2.0, max_points=5000), "seed": 3},
+    {"input_dir": "it's here", "input_options": {"intrinsics": "1,1,1,1", "max_frames": 3}},
+])
+def test_reproduce_command_without_cli_options_is_a_python_call(change, monkeypatch):
+    """Arguments the command line cannot express give a `python -c` call of run_demo with them all."""
+    import inspect
+    import shlex
+
+    import flowtrack.demo as demo
+
+    kwargs = _SYNTH | {"out": "out"} | change
+    argv = shlex.split(demo._reproduce_command(**kwargs))
+    assert argv[:2] == ["python", "-c"]
+    seen = {}
+    signature = inspect.signature(demo.run_demo)
+    monkeypatch.setattr(demo, "run_demo", lambda **kw: seen.update(kw))
+    exec(argv[2], {})
+    bound = signature.bind(**seen)
+    bound.apply_defaults()
+    got = dict(bound.arguments)
+    want = dict(kwargs)
+    if want["input_dir"] is not None:  # the synthetic scene's settings are not written out then
+        for k in ("n_objects", "image_size", "noise", "scenario"):
+            want[k] = got[k]
+    want["config"] = want["config"] or DemoConfig()
+    got["config"] = got["config"] or DemoConfig()
+    got["image_size"] = tuple(got["image_size"])
+    assert {k: got[k] for k in want} == want
+
+
+def _comparable(summary: dict) -> dict:
+    """A summary without what legitimately changes between runs (timings, output paths)."""
+    drop = ("seconds_per_pair", "total_seconds", "figures", "reproduce")
+    s = {k: v for k, v in summary.items() if k not in drop}
+    if "motorcycle" in s:
+        s["motorcycle"] = {k: v for k, v in s["motorcycle"].items() if k != "seconds"}
+    return s
+
+
+def test_the_command_in_the_box_reproduces_a_run_on_a_tum_sequence(tmp_path):
+    """`--input` with options: the box shows them, and running the box's command gives the same report."""
+    import html
+    import shlex
+
+    from flowtrack.rgbd_io import write_tum_sequence
+
+    scene = make_scene(n_objects=2, n_frames=6, image_size=(96, 128), seed=3)
+    seq = write_tum_sequence(tmp_path / "my seq", [f.rgb for f in scene.frames],
+                             [f.depth for f in scene.frames], [100.0 + i * scene.dt for i in range(6)],
+                             depth_scale=1000.0)
+    cam = scene.camera
+    intrinsics = f"{cam.fx},{cam.fy},{cam.cx},{cam.cy}"
+    out = tmp_path / "out"
+    argv = ["demo", "--out", str(out), "--input", str(seq), "--intrinsics", intrinsics, "--depth-scale",
+            "1000", "--step", "1", "--seed", "2", "--frames", "5", "--predict-ahead", "2", "--no-real-data",
+            "--no-gif", "--no-progress"]
+    assert main(argv) == 0
+    first = json.loads((out / "metrics.json").read_text())
+    cmd = html.unescape(_reproduce_box(out)).splitlines()[0]
+    assert cmd == first["reproduce"]
+    assert shlex.split(cmd) == ["flowtrack", "demo", "--out", str(out), "--frames", "5", "--seed", "2",
+                                "--predict-ahead", "2", "--no-gif", "--no-real-data", "--input", str(seq),
+                                "--intrinsics", intrinsics, "--depth-scale", "1000.0"]
+    assert "your own TUM RGB-D sequence" not in _reproduce_box(out)  # the hint is for synthetic runs
+    shutil.rmtree(out)
+    assert main([*shlex.split(cmd)[1:], "--no-progress"]) == 0
+    assert _comparable(json.loads((out / "metrics.json").read_text())) == _comparable(first)
+
+
+def test_two_runs_with_the_same_seed_are_identical(demo_out, summary, tmp_path):
+    """Bit for bit: tracks, predictions and every metric (open3d runs on one thread, see run_demo)."""
+    import open3d as o3d
+
+    from flowtrack.demo import run_demo
+
+    before = o3d.utility.get_max_threads()
+    during = []
+    again = run_demo(tmp_path / "again", n_frames=FRAMES, image_size=(180, 240), predict_ahead=AHEAD,
+                     progress=False, echo=lambda *a: during.append(o3d.utility.get_max_threads()))
+    assert set(during) == {1}
+    assert o3d.utility.get_max_threads() == before
+    again = json.loads(json.dumps(again, default=str))  # as metrics.json has it
+    assert _comparable(again) == _comparable(summary)
+    assert (tmp_path / "again" / "metrics.md").read_text() == (demo_out / "metrics.md").read_text()
+
+
+def test_support_planes_is_repeatable():
+    """open3d's RANSAC, seeded but multi-threaded, picked different planes from run to run."""
+    from flowtrack.camera import backproject
+    from flowtrack.demo import support_planes
+
+    scene = make_scene(n_objects=3, n_frames=6, image_size=(120, 160), seed=0)
+    for f in scene.frames:
+        P = backproject(f.depth, scene.camera)[f.depth > 0]
+        masks = {support_planes(P, DemoConfig()).tobytes() for _ in range(30)}
+        assert len(masks) == 1
+
+
+def test_open3d_threads_without_set_max_threads_limits_openmp(monkeypatch):
+    """open3d 0.19 (OpenMP, no set_max_threads): the OpenMP runtimes are limited instead."""
+    import open3d as o3d
+    from threadpoolctl import threadpool_info
+
+    from flowtrack.demo import _open3d_threads
+
+    def openmp_threads():
+        return {p["num_threads"] for p in threadpool_info() if p["user_api"] == "openmp"}
+
+    if not openmp_threads():
+        pytest.skip("no OpenMP runtime loaded in this process")
+    before = openmp_threads()
+    monkeypatch.delattr(o3d.utility, "set_max_threads", raising=False)
+    with _open3d_threads(1):
+        assert openmp_threads() == {1}
+    assert openmp_threads() == before
+    with pytest.raises(ValueError, match="n"):
+        with _open3d_threads(0):
+            pass

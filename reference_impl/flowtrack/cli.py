@@ -129,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
     real.add_argument("--disparity-scale", type=_positive_float, default=256.0,
                       help="16-bit disparity PNG units per pixel (default: 256, KITTI); PFM is in pixels")
     real.add_argument("--doffs", type=float, default=0.0,
-                      help="added to the disparity before Z = f B / d (Middlebury's doffs, default 0)")
+                      help="added to the disparity d in Z = f B / (d + doffs) (Middlebury's doffs; 0)")
     demo.set_defaults(func=_cmd_demo)
     for module_name in _SUBCOMMAND_MODULES:
         importlib.import_module(module_name).register(sub)
