@@ -768,6 +768,29 @@ def _in_workspace(tr: PlanarTrajectory, r: float, times) -> bool:
     )
 
 
+# Random objects are placed one after the other; when one finds no free path (crowded scenes), all of
+# them are placed again, up to this many times, continuing the same random stream (deterministic by
+# seed; a scene placed at the first try is exactly what it always was).
+_PLACEMENT_ROUNDS = 100
+
+
+def _random_trajectories(rng, objects, scripted, duration, opts, placed, times, static_discs):
+    """Random non-colliding paths for the objects not in ``scripted`` (dict id -> trajectory)."""
+    for round_ in range(_PLACEMENT_ROUNDS):
+        taken, chosen = list(placed), {}
+        try:
+            for k in objects:
+                if k in scripted:
+                    continue
+                chosen[k] = _random_trajectory(rng, objects[k], duration, opts, taken, times, static_discs)
+                taken.append((chosen[k], objects[k].radius))
+            return chosen
+        except RuntimeError:
+            if round_ == _PLACEMENT_ROUNDS - 1:
+                raise
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
 def _random_trajectory(rng, shape, duration, opts, others, times, static_discs) -> PlanarTrajectory:
     r = shape.radius
     lo_s, hi_s = opts["speed"]
@@ -788,8 +811,8 @@ def _random_trajectory(rng, shape, duration, opts, others, times, static_discs) 
         if _in_workspace(tr, r, times) and not _collides(tr, r, others + static_discs, times):
             return tr
     raise RuntimeError(
-        "could not place a non-colliding trajectory in the workspace; use fewer objects (n_objects) "
-        "or a lower speed"
+        f"could not place a non-colliding trajectory in the workspace ({_PLACEMENT_ROUNDS} rounds of 500 "
+        "tries per object); use fewer objects (n_objects) or a lower speed"
     )
 
 
@@ -924,6 +947,9 @@ def make_scene(
     ------
     ValueError, TypeError
         Bad arguments (the message names the argument).
+    RuntimeError
+        The objects do not fit: no non-colliding paths in the workspace after repeated placement
+        rounds (about 6 objects at the default speeds and 24 frames is where this starts).
 
     Examples
     --------
@@ -1000,12 +1026,8 @@ def make_scene(
         objects[k] = shape
         trajectories[k] = _straight_trajectory(rng, p0, p1, duration, shape, opts)
         placed.append((trajectories[k], shape.radius))
-    for k in objects:
-        if k in trajectories:
-            continue
-        tr = _random_trajectory(rng, objects[k], duration, opts, placed, times, static_discs)
-        trajectories[k] = tr
-        placed.append((tr, objects[k].radius))
+    trajectories.update(_random_trajectories(rng, objects, trajectories, duration, opts, placed, times,
+                                             static_discs))
 
     light_c = T_cw[:3, :3] @ _LIGHT_W
     dirs = ray_directions(cam).reshape(H, W, 3)
