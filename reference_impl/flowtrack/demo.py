@@ -698,42 +698,6 @@ def _write_gif(inp, snapshots, path: Path) -> None:
 # ------------------------------------------------------------------------------------------------
 # MOT15 TUD-Campus: the frames behind the table, and their figure
 # ------------------------------------------------------------------------------------------------
-def _tud_campus_frames(seed: int | None) -> tuple[list[dict], list[dict], float]:
-    """The frames that :func:`flowtrack.realdata.track_tud_campus` scores: true centres and tracks.
-
-    ``track_tud_campus`` returns only the CLEAR-MOT figures; this runs its loop again, with its
-    defaults (read from its signature) and ``seed``, so that the figure shows the very run the table
-    scores (``tests/test_demo.py`` checks that :func:`~flowtrack.metrics.clear_mot` of these frames
-    gives ``track_tud_campus``'s figures).
-
-    Returns
-    -------
-    centres, hyp : list of dict
-        Per frame ``{person id: (x, y)}`` (box centres) and ``{track id: (x, y)}`` (tracks updated in
-        the last two frames), pixels.
-    max_dist : float
-        The match distance of the scoring (pixels).
-    """
-    import inspect
-
-    from .metrics import tud_campus_tracks
-    from .realdata import track_tud_campus
-    from .tracking import MultiObjectTracker
-
-    d = {k: p.default for k, p in inspect.signature(track_tud_campus).parameters.items()}
-    gt, _ = tud_campus_tracks()
-    centres = [{i: np.array([b[0] + b[2] / 2, b[1] + b[3] / 2]) for i, b in f.items()} for f in gt]
-    rng = np.random.default_rng(seed)
-    tracker = MultiObjectTracker(dt=1.0, q=d["q"], r=d["noise_px"] ** 2, dim=2, min_hits=2,
-                                 max_misses=d["max_misses"], velocity_var=25.0)
-    hyp = []
-    for frame in centres:
-        kept = [i for i in sorted(frame) if rng.random() >= d["drop"]]
-        Z = np.array([frame[i] + rng.normal(0.0, d["noise_px"], 2) for i in kept]).reshape(-1, 2)
-        hyp.append({t.id: t.x[:2].copy() for t in tracker.step(Z) if t.misses <= 1})
-    return centres, hyp, float(d["max_dist"])
-
-
 def _mot_matches(gt, hyp, max_dist: float) -> tuple[list[dict], list[tuple[int, object]]]:
     """The correspondences :func:`flowtrack.metrics.clear_mot` (Euclidean) makes, frame by frame.
 
@@ -1233,9 +1197,9 @@ def run_demo(
         real = motorcycle_section(cfg, seed=seed, figure=figures["motorcycle"])
         from .realdata import track_tud_campus
 
-        tud = track_tud_campus(seed=seed)
+        tud, centres, hyp = track_tud_campus(seed=seed, return_frames=True)
         figures["tud_campus"] = out / "tud_campus_tracks.png"
-        _plot_tud_campus(*_tud_campus_frames(seed), figures["tud_campus"])
+        _plot_tud_campus(centres, hyp, tud["max_dist"], figures["tud_campus"])
         summary["motorcycle"] = real
         summary["tud_campus_tracking"] = {k: _plain(v) for k, v in tud.items()}
     summary["figures"] = {k: str(v) for k, v in figures.items()}

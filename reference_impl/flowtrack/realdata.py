@@ -268,7 +268,9 @@ def track_tud_campus(
     q: float = 10.0,
     max_misses: int = 5,
     max_dist: float = 30.0,
-) -> dict:
+    *,
+    return_frames: bool = False,
+):
     """Track real pedestrian trajectories: MOT15 TUD-Campus box centres as noisy detections.
 
     The ground-truth boxes of TUD-Campus (71 frames, 8 people; the files ship inside the motmetrics
@@ -283,6 +285,9 @@ def track_tud_campus(
     -------
     dict
         The :func:`~flowtrack.metrics.clear_mot` figures plus ``frames``, ``objects`` and the settings.
+    centres, hyp : list of dict, only with ``return_frames=True``
+        What was scored, per frame: ``{person id: (x, y)}`` true box centres and ``{track id: (x, y)}``
+        the tracks' positions (pixels), e.g. to draw the run (the demo's TUD-Campus figure).
     """
     from .metrics import clear_mot, tud_campus_tracks
     from .tracking import MultiObjectTracker
@@ -302,8 +307,8 @@ def track_tud_campus(
     for frame in centres:
         kept = [i for i in sorted(frame) if rng.random() >= drop]
         Z = np.array([frame[i] + rng.normal(0.0, noise_px, 2) for i in kept]).reshape(-1, 2)
-        hyp.append({t.id: t.x[:2] for t in tracker.step(Z) if t.misses <= 1})
+        hyp.append({t.id: t.x[:2].copy() for t in tracker.step(Z) if t.misses <= 1})
     out = clear_mot(centres, hyp, max_dist)
     out.update(frames=len(centres), objects=len({i for f in centres for i in f}), noise_px=noise_px,
-               drop=drop, seed=seed)
-    return out
+               drop=drop, seed=seed, max_dist=max_dist)
+    return (out, centres, hyp) if return_frames else out
