@@ -167,3 +167,17 @@ def test_the_gradescope_zip_carries_the_key_to_the_grader(tmp_path):
     assert '--secret-file "$ROOT/source/secret"' in run_script
     with zipfile.ZipFile(build_autograder(tmp_path / "plain.zip")) as zf:
         assert "secret" not in zf.namelist()
+
+
+def test_the_gradescope_command_creates_the_key_once(tmp_path, capsys):
+    from flowtrack.cli import main
+
+    key, zpath = tmp_path / "seed.key", tmp_path / "ag.zip"
+    assert main(["gradescope", "--out", str(zpath), "--secret-file", str(key)]) == 0
+    assert "created the seed key" in capsys.readouterr().err
+    with zipfile.ZipFile(zpath) as zf:
+        assert zf.read("secret") == key.read_bytes()
+    assert main(["gradescope", "--out", str(zpath), "--secret-file", str(key)]) == 0
+    assert "created" not in capsys.readouterr().err
+    assert main(["gradescope", "--out", str(zpath)]) == 0
+    assert "no --secret-file" in capsys.readouterr().err

@@ -32,22 +32,38 @@ def _cmd_check(args: argparse.Namespace) -> int:
     return check_notebook(args.notebook)
 
 
-def _cmd_grade(args: argparse.Namespace) -> int:
-    from .grade import grade_class
+def _secret(path: str | None) -> bytes | None:
+    """The instructor's seed key of ``--secret-file`` (created if missing), or None with a warning."""
     from .spec import read_secret
 
-    secret = None
-    if args.secret_file is None:
+    if path is None:
         print(
             "warning: no --secret-file: hidden-test inputs are seeded from student and test names only, "
             "so a student who has the course package can predict them",
             file=sys.stderr,
         )
-    else:
-        existed = Path(args.secret_file).exists()
-        secret = read_secret(args.secret_file, create=True)
-        if not existed:
-            print(f"created the seed key {args.secret_file} (owner-only; reuse it)", file=sys.stderr)
+        return None
+    existed = Path(path).exists()
+    secret = read_secret(path, create=True)
+    if not existed:
+        print(f"created the seed key {path} (owner-only; reuse it for this class)", file=sys.stderr)
+    return secret
+
+
+def _add_secret_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--secret-file",
+        metavar="FILE",
+        default=None,
+        help="the instructor's seed key for hidden-test inputs (created with 32 random bytes if missing; "
+        "keep it away from students and reuse it for every run of a class)",
+    )
+
+
+def _cmd_grade(args: argparse.Namespace) -> int:
+    from .grade import grade_class
+
+    secret = _secret(args.secret_file)
     rows = grade_class(
         args.submissions,
         args.out,
@@ -72,6 +88,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
 def _cmd_gradescope(args: argparse.Namespace) -> int:
     from .gradescope import build_autograder
 
+    _secret(args.secret_file)  # creates a missing key (and says so), or warns that there is none
     path = build_autograder(args.out, secret_file=args.secret_file)
     print(f"wrote {path} (upload it as the assignment's autograder; Ubuntu 24.04 base image)")
     return 0
@@ -128,13 +145,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("--assignment", default="flowtrack", help="assignment name in the gradebook")
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
-    p.add_argument(
-        "--secret-file",
-        metavar="FILE",
-        default=None,
-        help="the instructor's seed key for hidden-test inputs (created with 32 random bytes if missing; "
-        "keep it away from students and reuse it for every run of a class)",
-    )
+    _add_secret_option(p)
     p.set_defaults(func=_cmd_grade)
 
     p = subparsers.add_parser(
@@ -147,12 +158,7 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument("--out", default="autograder.zip", help="zip to write (default: autograder.zip)")
-    p.add_argument(
-        "--secret-file",
-        metavar="FILE",
-        default=None,
-        help="include this seed key (as for grade; created if missing) so hidden inputs are unpredictable",
-    )
+    _add_secret_option(p)
     p.set_defaults(func=_cmd_gradescope)
 
 
