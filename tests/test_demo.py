@@ -250,7 +250,6 @@ def test_tud_campus_section_has_its_figure(demo_out, summary):
 
 def test_tud_campus_figure_shows_the_scored_run():
     """The frames behind the figure are the run that track_tud_campus scores, matched as clear_mot does."""
-    from flowtrack.demo import _mot_matches
     from flowtrack.metrics import clear_mot
     from flowtrack.realdata import track_tud_campus
 
@@ -261,29 +260,10 @@ def test_tud_campus_figure_shows_the_scored_run():
         mine = clear_mot(centres, hyp, max_dist)
         for key in ("mota", "motp", "idf1", "id_switches", "fp", "fn", "matches", "num_objects"):
             assert mine[key] == scored[key], (seed, key)
-        matches, switches = _mot_matches(centres, hyp, max_dist)
+        _, matches, switches = clear_mot(centres, hyp, max_dist, return_matches=True)
         assert len(switches) == mine["id_switches"] > 0
         assert sum(map(len, matches)) == mine["matches"] + mine["id_switches"]
         assert sum(len(f) for f in hyp) - sum(map(len, matches)) == mine["fp"]
-
-
-def test_mot_matches_agree_with_clear_mot_on_random_frames():
-    from flowtrack.demo import _mot_matches
-    from flowtrack.metrics import clear_mot
-
-    rng = np.random.default_rng(5)
-    for _ in range(30):
-        T = int(rng.integers(1, 12))
-        gt = [{o: rng.uniform(0, 4, 2) for o in range(5) if rng.random() < 0.8} for _ in range(T)]
-        hyp = [{h: rng.uniform(0, 4, 2) for h in "abcdef" if rng.random() < 0.7} for _ in range(T)]
-        matches, switches = _mot_matches(gt, hyp, 1.0)
-        m = clear_mot(gt, hyp, 1.0)
-        assert len(switches) == m["id_switches"]
-        assert sum(map(len, matches)) == m["num_detections"]
-        for t, pairs in enumerate(matches):
-            assert len(set(pairs.values())) == len(pairs)  # one object per hypothesis
-            for o, h in pairs.items():
-                assert np.linalg.norm(gt[t][o] - hyp[t][h]) <= 1.0
 
 
 # ------------------------------------------------------------------------------------------------

@@ -261,7 +261,8 @@ def _oracle(gt, hyp, tau):
     tp = fp = fn = sw = 0
     dsum = 0.0
     pairs = {}
-    for g, h in zip(gt, hyp):
+    frames, switches = [], []  # per frame {object: hypothesis}; (frame, object) of each switch
+    for t, (g, h) in enumerate(zip(gt, hyp)):
         dist = {(o, k): float(np.linalg.norm(np.subtract(g[o], h[k]))) for o in g for k in h}
         ok = {p: d for p, d in dist.items() if d <= tau}
         for p in ok:
@@ -286,10 +287,12 @@ def _oracle(gt, hyp, tau):
         for o, k in best[2]:
             if o in last and last[o] != k:
                 sw += 1
+                switches.append((t, o))
             else:
                 tp += 1
             dsum += ok[(o, k)]
             last[o] = k
+        frames.append({**fixed, **dict(best[2])})
         n_matched = len(fixed) + len(best[2])
         fn += len(g) - n_matched
         fp += len(h) - n_matched
@@ -311,6 +314,8 @@ def _oracle(gt, hyp, tau):
         motp=dsum / (tp + sw) if tp + sw else math.nan,
         mota=1 - (fn + fp + sw) / n_obj,
         idf1=2 * idtp / (n_obj + n_pred),
+        frames=frames,
+        switches=switches,
     )
 
 
@@ -345,6 +350,10 @@ def test_random_sequences_agree_with_brute_force_oracle(rng):
             assert m[k] == o[k], k
         for k in ("mota", "idf1", "motp"):
             assert m[k] == pytest.approx(o[k], nan_ok=True), k
+        # the correspondences themselves (return_matches) are the oracle's, frame by frame
+        m2, frames, switches = clear_mot(gt, hyp, tau, return_matches=True)
+        assert m2 == pytest.approx(m, nan_ok=True)
+        assert frames == o["frames"] and switches == o["switches"]
         # bookkeeping against counts made here: every gt entry is associated (match or switch) or
         # missed, every hypothesis entry associated or false; the associations are the oracle's
         n_obj = sum(len(g) for g in gt)

@@ -698,54 +698,6 @@ def _write_gif(inp, snapshots, path: Path) -> None:
 # ------------------------------------------------------------------------------------------------
 # MOT15 TUD-Campus: the frames behind the table, and their figure
 # ------------------------------------------------------------------------------------------------
-def _mot_matches(gt, hyp, max_dist: float) -> tuple[list[dict], list[tuple[int, object]]]:
-    """The correspondences :func:`flowtrack.metrics.clear_mot` (Euclidean) makes, frame by frame.
-
-    Previous pairs still within ``max_dist`` are kept, the rest get a gated min-cost assignment; an
-    object matched to another hypothesis than last time is an ID switch.
-
-    Returns
-    -------
-    matches : list of dict
-        Per frame ``{object id: hypothesis id}``; an object missing from it is a miss.
-    switches : list of (frame, object id)
-
-    Examples
-    --------
-    >>> gt = [{1: [0.0, 0.0], 2: [5.0, 5.0]}, {1: [1.0, 0.0], 2: [5.0, 6.0]}]
-    >>> hyp = [{"a": [0.1, 0.0], "c": [5.0, 5.0]}, {"b": [1.0, 0.0], "x": [9.0, 9.0]}]
-    >>> _mot_matches(gt, hyp, 0.5)
-    ([{1: 'a', 2: 'c'}, {1: 'b'}], [(1, 1)])
-    """
-    from .metrics import _euclidean, _gated_assignment
-
-    last: dict = {}
-    matches, switches = [], []
-    for t, (g, h) in enumerate(zip(gt, hyp)):
-        oids, hids = list(g), list(h)
-        pairs: dict = {}
-        if oids and hids:
-            G = np.array([g[o] for o in oids], dtype=float)
-            D = _euclidean(G, np.array([h[k] for k in hids], dtype=float))
-            D = np.where(D > max_dist, np.nan, D)
-            col = {k: j for j, k in enumerate(hids)}
-            used = np.zeros(len(hids), dtype=bool)
-            for i, o in enumerate(oids):  # 1. previous correspondences that are still valid
-                j = col.get(last[o]) if o in last else None
-                if j is not None and not used[j] and np.isfinite(D[i, j]):
-                    pairs[o] = hids[j]
-                    used[j] = True
-            D[[o in pairs for o in oids], :] = np.nan  # 2. min-cost assignment of the rest
-            D[:, used] = np.nan
-            for i, j in _gated_assignment(D):
-                o = oids[i]
-                if o in last and last[o] != hids[j]:
-                    switches.append((t, o))
-                last[o] = pairs[o] = hids[j]
-        matches.append(pairs)
-    return matches, switches
-
-
 def _runs(frames) -> list[list[int]]:
     """Consecutive stretches of a sorted list of frame numbers."""
     out: list[list[int]] = []
@@ -763,7 +715,9 @@ def _plot_tud_campus(centres, hyp, max_dist: float, path: Path) -> None:
     import matplotlib
     from matplotlib.lines import Line2D
 
-    matches, switches = _mot_matches(centres, hyp, max_dist)
+    from .metrics import clear_mot
+
+    _, matches, switches = clear_mot(centres, hyp, max_dist, return_matches=True)
     T = len(centres)
     people = sorted({o for f in centres for o in f})
     tracks = sorted({k for f in hyp for k in f})

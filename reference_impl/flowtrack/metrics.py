@@ -185,7 +185,7 @@ def _ratio(num: float, den: float) -> float:
 # --------------------------------------------------------------------------------------------------
 # the metrics
 # --------------------------------------------------------------------------------------------------
-def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
+def clear_mot(gt, hyp, max_dist, distance: str = "euclidean", *, return_matches: bool = False):
     r"""CLEAR-MOT (MOTA, MOTP, ID switches) and identity (IDF1) metrics of a tracking result.
 
     See the module docstring for the matching rules and formulas; they follow py-motmetrics
@@ -205,6 +205,8 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
         ``"euclidean"``: positions are vectors of one common length ``D`` and
         :math:`d = \lVert g - h \rVert_2`. ``"iou"``: positions are boxes ``[x, y, w, h]`` and
         :math:`d = 1 - \mathrm{IoU}` (:func:`iou_distance`).
+    return_matches : bool, keyword-only
+        Also return the correspondences, e.g. to draw them.
 
     Returns
     -------
@@ -216,6 +218,11 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
         ``precision``, ``recall``, ``idp``, ``idr``, ``idtp``, ``idfp``, ``idfn``,
         ``mostly_tracked`` (tracked :math:`\ge 80\%` of its frames), ``partially_tracked``,
         ``mostly_lost`` (:math:`< 20\%`), ``num_fragmentations``.
+    matches : list of dict, only with ``return_matches=True``
+        Per frame ``{object id: hypothesis id}`` of the matched pairs (switches included); an object
+        missing from it is a miss, a hypothesis missing from its values a false positive.
+    switches : list of (int, object id), only with ``return_matches=True``
+        ``(frame, object id)`` of every identity switch.
 
     Raises
     ------
@@ -237,6 +244,8 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
     (2, 1, 1, 1)
     >>> round(m["mota"], 3)  # 1 - (1 + 1 + 1) / 4
     0.25
+    >>> clear_mot(gt, hyp, max_dist=0.5, return_matches=True)[1:]
+    ([{1: 'a', 2: 'c'}, {1: 'b'}], [(1, 1)])
     """
     gt = _check_sequence(gt, "gt")
     hyp = _check_sequence(hyp, "hyp")
@@ -257,6 +266,8 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
     obj_states: dict = {}  # gt id -> [tracked?] per frame present (for fragmentations)
     hyp_count: dict = {}
     pair_count: dict = {}  # (gt id, hyp id) -> frames both present within the threshold
+    matches: list[dict] = []  # per frame {gt id: hyp id}
+    switches: list[tuple] = []  # (frame, gt id)
 
     for t, (gframe, hframe) in enumerate(zip(gt, hyp)):
         oids, G = _frame_arrays(gframe, "gt", t, distance, dim)
@@ -267,6 +278,8 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
             hyp_count[h] = hyp_count.get(h, 0) + 1
         no, nh = len(oids), len(hids)
         matched_o = np.zeros(no, dtype=bool)
+        pairs: dict = {}
+        matches.append(pairs)
         if no and nh:
             if distance == "iou":
                 D = 1.0 - _iou(G[:, None, :], H[None, :, :])
@@ -283,6 +296,7 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
                 j = col.get(last_hyp[o]) if o in last_hyp else None
                 if j is not None and not matched_h[j] and np.isfinite(D[i, j]):
                     matched_o[i] = matched_h[j] = True
+                    pairs[o] = hids[j]
                     n_match += 1
                     dist_sum += D[i, j]
             # 2. min-cost assignment of the rest
@@ -293,10 +307,11 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
                 o, h = oids[i], hids[j]
                 if o in last_hyp and last_hyp[o] != h:
                     n_switch += 1
+                    switches.append((t, o))
                 else:
                     n_match += 1
                 dist_sum += D2[i, j]
-                last_hyp[o] = h
+                last_hyp[o] = pairs[o] = h
                 matched_o[i] = matched_h[j] = True
             n_fp += int(nh - matched_h.sum())
         else:
@@ -326,7 +341,7 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
     ratios = [obj_tracked[o] / obj_count[o] for o in obj_count]
     fragmentations = sum(_fragmentations(states) for states in obj_states.values())
 
-    return {
+    out = {
         "mota": 1.0 - _ratio(n_fn + n_fp + n_switch, num_objects),
         "motp": _ratio(dist_sum, num_detections),
         "idf1": _ratio(2 * idtp, num_objects + num_predictions),
@@ -351,6 +366,7 @@ def clear_mot(gt, hyp, max_dist, distance: str = "euclidean") -> dict:
         "mostly_lost": sum(r < 0.2 for r in ratios),
         "num_fragmentations": fragmentations,
     }
+    return (out, matches, switches) if return_matches else out
 
 
 def _fragmentations(states: list[bool]) -> int:
