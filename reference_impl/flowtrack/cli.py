@@ -32,6 +32,44 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {value}")
+    return value
+
+
+#: ``run_demo``'s ``input_options`` that ``flowtrack demo`` has an option for: key -> (option, its
+#: argparse keywords). The one definition of these options: the parser is built from it and
+#: :mod:`flowtrack.demo` writes a run's command line back from it (the "Reproduce" box).
+DEMO_INPUT_OPTIONS: dict[str, tuple[str, dict]] = {
+    "intrinsics": ("--intrinsics", dict(
+        default=None, metavar="FX,FY,CX,CY",
+        help="camera intrinsics: 'fx,fy,cx,cy', a file (fx fy cx cy or K) or a preset tum-fr1, "
+        "tum-fr2, tum-fr3, ros-default (default: DIR/intrinsics.txt)")),
+    "depth_scale": ("--depth-scale", dict(
+        type=_positive_float, default=5000.0, help="depth PNG units per metre (default: 5000, TUM)")),
+    "max_difference": ("--max-difference", dict(
+        type=_positive_float, default=0.02,
+        help="largest rgb/depth timestamp difference when associating (s, default: 0.02)")),
+    "step": ("--step", dict(type=_positive_int, default=1, help="use every STEP-th frame (default: 1)")),
+    "dt": ("--dt", dict(
+        type=_positive_float, default=None,
+        help="frame interval (s) when there are no timestamps (default: 1/30; stereo 0.1)")),
+    "baseline": ("--baseline", dict(type=_positive_float, default=None, help="stereo baseline (m)")),
+    "disparity_scale": ("--disparity-scale", dict(
+        type=_positive_float, default=256.0,
+        help="16-bit disparity PNG units per pixel (default: 256, KITTI); PFM is in pixels")),
+    "doffs": ("--doffs", dict(
+        type=float, default=0.0,
+        help="added to the disparity d in Z = f B / (d + doffs) (Middlebury's doffs; 0)")),
+}
+STEREO_DT = 0.1  #: frame interval (s) of stereo input without --dt
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
 
@@ -40,7 +78,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         input_options = {"intrinsics": args.intrinsics, "step": args.step}
         if args.stereo:
             input_options.update(stereo=True, baseline=args.baseline, disparity_scale=args.disparity_scale,
-                                 doffs=args.doffs, dt=args.dt or 0.1)
+                                 doffs=args.doffs, dt=args.dt or STEREO_DT)
         else:
             input_options.update(depth_scale=args.depth_scale, max_difference=args.max_difference, dt=args.dt)
     elif args.stereo or args.intrinsics is not None:
@@ -60,16 +98,6 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         gif=not args.no_gif,
     )
     return 0
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {value}")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -113,23 +141,10 @@ def build_parser() -> argparse.ArgumentParser:
     real.add_argument("--input", metavar="DIR", default=None,
                       help="a TUM RGB-D layout folder (or a stereo folder with --stereo) instead of the "
                            "synthetic scene")
-    real.add_argument("--intrinsics", default=None, metavar="FX,FY,CX,CY",
-                      help="camera intrinsics: 'fx,fy,cx,cy', a file (fx fy cx cy or K) or a preset tum-fr1, "
-                      "tum-fr2, tum-fr3, ros-default (default: DIR/intrinsics.txt)")
-    real.add_argument("--depth-scale", type=_positive_float, default=5000.0,
-                      help="depth PNG units per metre (default: 5000, TUM)")
-    real.add_argument("--max-difference", type=_positive_float, default=0.02,
-                      help="largest rgb/depth timestamp difference when associating (s, default: 0.02)")
-    real.add_argument("--step", type=_positive_int, default=1, help="use every STEP-th frame (default: 1)")
-    real.add_argument("--dt", type=_positive_float, default=None,
-                      help="frame interval (s) when there are no timestamps (default: 1/30; stereo 0.1)")
     real.add_argument("--stereo", action="store_true",
                       help="DIR holds left/, disparity/ (and optionally right/) instead of rgb/, depth/")
-    real.add_argument("--baseline", type=_positive_float, default=None, help="stereo baseline (m)")
-    real.add_argument("--disparity-scale", type=_positive_float, default=256.0,
-                      help="16-bit disparity PNG units per pixel (default: 256, KITTI); PFM is in pixels")
-    real.add_argument("--doffs", type=float, default=0.0,
-                      help="added to the disparity d in Z = f B / (d + doffs) (Middlebury's doffs; 0)")
+    for flag, kwargs in DEMO_INPUT_OPTIONS.values():
+        real.add_argument(flag, **kwargs)
     demo.set_defaults(func=_cmd_demo)
     for module_name in _SUBCOMMAND_MODULES:
         importlib.import_module(module_name).register(sub)

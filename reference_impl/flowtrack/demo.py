@@ -823,21 +823,6 @@ def _load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict
                   seq.depth, len(seq), None)
 
 
-#: ``input_options`` of :func:`run_demo` that ``flowtrack demo`` has an option for, with the value the
-#: command line passes when the option is not given (for TUM RGB-D input; stereo input: ``_STEREO_DT``)
-_CLI_INPUT_OPTIONS = {
-    "intrinsics": ("--intrinsics", None),
-    "depth_scale": ("--depth-scale", 5000.0),
-    "max_difference": ("--max-difference", 0.02),
-    "step": ("--step", 1),
-    "dt": ("--dt", None),
-    "baseline": ("--baseline", None),
-    "disparity_scale": ("--disparity-scale", 256.0),
-    "doffs": ("--doffs", 0.0),
-}
-_STEREO_DT = 0.1
-
-
 def _intrinsics_text(spec) -> str:
     """``--intrinsics`` for an ``intrinsics`` value: a string or path as is, else ``fx,fy,cx,cy``."""
     from .camera import PinholeCamera
@@ -916,7 +901,9 @@ def _reproduce_command(out, *, n_objects, n_frames, image_size, seed, noise, con
     args.update(n_frames=n_frames, seed=seed, predict_ahead=predict_ahead, real_data=real_data, gif=gif)
     args = {k: v for k, v in args.items() if v != default[k]}
 
-    if "noise" in args or changed or set(opts) - set(_CLI_INPUT_OPTIONS):
+    from .cli import DEMO_INPUT_OPTIONS, STEREO_DT
+
+    if "noise" in args or changed or set(opts) - set(DEMO_INPUT_OPTIONS):
         text = [f"out={_py(out)}"] + [f"{k}={_py(v)}" for k, v in args.items()]
         if changed:
             text.append("config=DemoConfig(" + ", ".join(f"{k}={_py(v)}" for k, v in changed.items()) + ")")
@@ -937,8 +924,8 @@ def _reproduce_command(out, *, n_objects, n_frames, image_size, seed, noise, con
     if not synthetic:
         cmd += ["--input", str(input_dir)] + ["--stereo"] * stereo
         for k, v in opts.items():
-            flag, unset = _CLI_INPUT_OPTIONS[k]
-            if v is not None and v != (_STEREO_DT if k == "dt" and stereo else unset):
+            flag, kwargs = DEMO_INPUT_OPTIONS[k]
+            if v is not None and v != (STEREO_DT if k == "dt" and stereo else kwargs["default"]):
                 cmd += [flag, _intrinsics_text(v) if k == "intrinsics" else _number_text(v)]
     return " ".join(shlex.quote(c) for c in cmd)
 
