@@ -18,7 +18,6 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import ClassVar
 
 import nbformat
 import numpy as np
@@ -26,6 +25,7 @@ import pytest
 
 from flowtrack.grading.exercises import EXERCISES, _ex09_expected, get_exercise, plain_data, run_in_process
 from flowtrack.grading.spec import Call, Exercise, GradedTest, Outcome, student_seed
+from grading_helpers import RecordingSandbox
 
 ROOT = Path(__file__).resolve().parents[1]
 EXDIR = ROOT / "exercises"
@@ -575,26 +575,6 @@ def _drawing_exercise(fraction: float | None = None) -> Exercise:
     return Exercise("exx_draw", "draws", "exx_draw.ipynb", ("echo",), (), tests)
 
 
-class _RecordingSandbox:
-    """Sandbox stand-in for run_exercise: records the calls it is sent and echoes their argument."""
-
-    sent: ClassVar[list[tuple[str, list]]] = []
-
-    def __init__(self, cells, **kwargs):
-        self.isolation = "recording"
-        self.cell_errors: dict[str, str] = {}
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def run(self, calls, timeout):
-        self.sent.extend((c.function, plain_data(list(c.args))) for c in calls)
-        return [Outcome(True, plain_data(c.args[0])) for c in calls]
-
-
 def _echo_notebook(ex, tmp_path) -> Path:
     cell = {"cell_type": "code", "execution_count": None, "outputs": [],
             "source": "def echo(x):\n    return x\n",
@@ -609,10 +589,10 @@ def _grader_inputs(ex, tmp_path, student, public_only=False) -> list[tuple[str, 
     from flowtrack.grading.grade import run_exercise
 
     nb = _echo_notebook(ex, tmp_path)
-    _RecordingSandbox.sent = []
-    result = run_exercise(ex, nb, student, public_only=public_only, sandbox_factory=_RecordingSandbox)
+    RecordingSandbox.sent = []
+    result = run_exercise(ex, nb, student, public_only=public_only, sandbox_factory=RecordingSandbox)
     assert not result.problems, result.problems
-    return list(_RecordingSandbox.sent)
+    return list(RecordingSandbox.sent)
 
 
 def _in_process_inputs(ex, student=None, **kwargs) -> list[tuple[str, list]]:
@@ -668,7 +648,7 @@ def test_in_process_clips_a_scorer_fraction_as_grade_does(tmp_path, fraction, sh
     earned = {name: pts for name, pts, _, _ in results}
     assert earned == {t.name: t.points * share for t in ex.tests}
     assert not any(math.isnan(v) for v in earned.values())
-    graded = run_exercise(ex, _echo_notebook(ex, tmp_path), "alice", sandbox_factory=_RecordingSandbox)
+    graded = run_exercise(ex, _echo_notebook(ex, tmp_path), "alice", sandbox_factory=RecordingSandbox)
     assert {t.name: t.score for t in graded.tests} == earned
 
 

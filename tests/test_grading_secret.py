@@ -9,11 +9,11 @@ A recording sandbox stands in for bubblewrap (what is checked is the inputs sent
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import stat
 import zipfile
 from pathlib import Path
-from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -22,48 +22,13 @@ nbformat = pytest.importorskip("nbformat")
 
 from flowtrack.grading.exercises import get_exercise  # noqa: E402
 from flowtrack.grading.grade import grade_class, run_exercise  # noqa: E402
-from flowtrack.grading.spec import (  # noqa: E402
-    MIN_SECRET_BYTES,
-    Outcome,
-    read_secret,
-    secret_id,
-    student_seed,
-)
+from flowtrack.grading.spec import MIN_SECRET_BYTES, read_secret, secret_id, student_seed  # noqa: E402
+from grading_helpers import RecordingSandbox  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 EX = get_exercise("ex02_optical_flow")
 KEY_A = bytes(range(32))
 KEY_B = bytes(range(1, 33))
-
-
-class RecordingSandbox:
-    """Sandbox stand-in: records the arguments of every call, answers every call with 0.0."""
-
-    sent: ClassVar[list[tuple[str, str]]] = []  # (function, repr of the args), read by the tests
-
-    def __init__(self, cells, **kwargs):
-        self.isolation = "recording"
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def run(self, calls, timeout):
-        for c in calls:
-            RecordingSandbox.sent.append((c.function, repr(_plain(c.args))))
-        return [Outcome(True, 0.0) for _ in calls]
-
-
-def _plain(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, dict):
-        return {k: _plain(v) for k, v in sorted(x.items())}
-    return x
 
 
 def _inputs(student, secret, hidden):
@@ -72,7 +37,7 @@ def _inputs(student, secret, hidden):
     RecordingSandbox.sent = []
     tests = [t for t in EX.tests if t.hidden == hidden]
     assert tests, "EX needs hidden and public tests for this check"
-    sub = type(EX)(**{**EX.__dict__, "tests": tuple(tests)})
+    sub = dataclasses.replace(EX, tests=tuple(tests))
     run_exercise(sub, nb, student, sandbox_factory=RecordingSandbox, secret=secret)
     return list(RecordingSandbox.sent)
 
