@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from flowtrack._batch_kernels import batched_cho_solve, batched_cholesky
 from flowtrack._validation import (
     check_psd,
     check_symmetric,
@@ -14,13 +15,7 @@ from flowtrack._validation import (
 )
 from flowtrack.association import chi2_gate, mahalanobis_cost
 from flowtrack.bayes import GridBayesFilter, gaussian_likelihood, linear_gaussian_kernel
-from flowtrack.kalman import (
-    BatchKalmanFilter,
-    KalmanFilter,
-    _batched_cho_solve,
-    _batched_cholesky,
-    constant_velocity_model,
-)
+from flowtrack.kalman import BatchKalmanFilter, KalmanFilter, constant_velocity_model
 from flowtrack.tracking import GNNAssociator, MultiObjectTracker
 
 
@@ -182,7 +177,7 @@ def test_kalman_filter_not_pd_innovation_covariance():
 def test_batched_cho_solve_large_m(rng, m):
     S = random_spd(rng, m, (7,))
     B = rng.normal(size=(7, m, 3))
-    X = _batched_cho_solve(_batched_cholesky(S), B)
+    X = batched_cho_solve(batched_cholesky(S), B)
     np.testing.assert_allclose(X, np.linalg.solve(S, B), rtol=1e-10, atol=1e-12)
 
 
@@ -190,7 +185,7 @@ def test_batched_cholesky_not_pd_message():
     for m in (2, 5):
         S = np.broadcast_to(-np.eye(m), (3, m, m)).copy()
         with pytest.raises(ValueError, match="must be positive definite; use a positive definite R or P"):
-            _batched_cholesky(S)
+            batched_cholesky(S)
 
 
 def _filter(rng, M=6, dim=2):
