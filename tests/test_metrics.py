@@ -9,14 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from flowtrack.metrics import (
-    clear_mot,
-    iou_distance,
-    load_mot_challenge,
-    mot_challenge_tracks,
-    tud_campus_paths,
-    tud_campus_tracks,
-)
+from flowtrack.datasets import mot_challenge_tracks, tud_campus_tracks
+from flowtrack.metrics import clear_mot, iou_distance
 
 HAVE_MOTMETRICS_DATA = importlib.util.find_spec("motmetrics") is not None
 needs_data = pytest.mark.skipif(not HAVE_MOTMETRICS_DATA, reason="motmetrics wheel (data files) missing")
@@ -104,17 +98,6 @@ def test_mot15_sequences_match_py_motmetrics_test_values(sequence, expected):
         "motp",
     ]
     np.testing.assert_allclose([m[k] for k in keys], expected, atol=1e-6)
-
-
-@needs_data
-def test_tud_campus_paths_point_at_the_wheel_files():
-    gt_path, test_path = tud_campus_paths()
-    assert gt_path.name == "gt.txt" and test_path.name == "test.txt"
-    assert gt_path.parent.name == "TUD-Campus"
-    frames = load_mot_challenge(gt_path)
-    assert len(frames) == 71
-    # first line of gt.txt: 1,1,399,182,121,229,1,-1,-1,-1
-    np.testing.assert_array_equal(frames[0][1], [399, 182, 121, 229])
 
 
 # --------------------------------------------------------------------------------------------------
@@ -378,32 +361,6 @@ def test_renaming_hypotheses_changes_nothing(rng):
     renamed = [{f"t{k}": v for k, v in h.items()} for h in hyp]
     a, b = clear_mot(gt, hyp, 1.0), clear_mot(gt, renamed, 1.0)
     assert a == pytest.approx(b, nan_ok=True)
-
-
-# --------------------------------------------------------------------------------------------------
-# loader
-# --------------------------------------------------------------------------------------------------
-def test_load_mot_challenge(tmp_path):
-    p = tmp_path / "res.txt"
-    p.write_text("2 5 1.5 2 3 4 0.9\n2,6,0,0,1,1,0.2,-1,-1,-1\n\n4,5,2,2,3,4,1,-1,-1,-1\n")
-    frames = load_mot_challenge(p)
-    assert len(frames) == 4 and frames[0] == {} and frames[2] == {}
-    np.testing.assert_array_equal(frames[1][5], [1.5, 2, 3, 4])
-    assert set(frames[1]) == {5, 6}
-    assert set(load_mot_challenge(p, min_confidence=0.5)[1]) == {5}
-    assert len(load_mot_challenge(p, num_frames=6)) == 6
-    with pytest.raises(ValueError, match="num_frames"):
-        load_mot_challenge(p, num_frames=3)
-    dup = tmp_path / "dup.txt"
-    dup.write_text("1,1,0,0,1,1\n1,1,2,2,1,1\n")
-    with pytest.raises(ValueError, match="duplicate"):
-        load_mot_challenge(dup)
-    bad = tmp_path / "bad.txt"
-    bad.write_text("1,1,0,0\n")
-    with pytest.raises(ValueError, match="path"):
-        load_mot_challenge(bad)
-    with pytest.raises(ValueError, match="path"):
-        load_mot_challenge(tmp_path / "missing.txt")
 
 
 # --------------------------------------------------------------------------------------------------

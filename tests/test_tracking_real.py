@@ -2,7 +2,7 @@
 
 import pytest
 
-from flowtrack.realdata import track_tud_campus
+from flowtrack.datasets import track_tud_campus
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -1,7 +1,8 @@
 r"""CLEAR-MOT and identity (IDF1) metrics for multi-object tracking.
 
 The evaluation follows py-motmetrics (Heindl et al.) event by event, so that its published figures
-for the MOTChallenge 2015 sequence TUD-Campus are reproduced exactly (see :func:`tud_campus_tracks`).
+for the MOTChallenge 2015 sequence TUD-Campus are reproduced exactly (see
+:func:`flowtrack.datasets.tud_campus_tracks`, which loads it).
 
 **Per-frame matching** (Bernardin & Stiefelhagen 2008). Let :math:`d_{ij}` be the distance between
 ground-truth object :math:`i` and hypothesis :math:`j` in frame :math:`t`; pairs with
@@ -41,27 +42,16 @@ dummy nodes; the minimisers coincide.)
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import math
-import numbers
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ._validation import as_array, positive
 
-__all__ = [
-    "clear_mot",
-    "iou_distance",
-    "load_mot_challenge",
-    "mot_challenge_paths",
-    "mot_challenge_tracks",
-    "tud_campus_paths",
-    "tud_campus_tracks",
-]
+__all__ = ["clear_mot", "iou_distance"]
 
 _DISTANCES = ("euclidean", "iou")
 
@@ -377,165 +367,3 @@ def _fragmentations(states: list[bool]) -> int:
     last = len(states) - 1 - states[::-1].index(True)
     span = states[first : last + 1]
     return sum(1 for prev, cur in itertools.pairwise(span) if prev and not cur)
-
-
-# --------------------------------------------------------------------------------------------------
-# MOTChallenge files
-# --------------------------------------------------------------------------------------------------
-def load_mot_challenge(
-    path, num_frames: int | None = None, min_confidence: float | None = None
-) -> list[dict]:
-    """Read a MOTChallenge 2D text file (``gt.txt`` or a tracker's result).
-
-    Each line is ``frame, id, x, y, w, h, conf, ...`` (comma or whitespace separated; frames are
-    1-based). Boxes are returned as stored in the file (MOTChallenge's 1-based pixel coordinates;
-    py-motmetrics subtracts 1 from ``x, y``, which does not change any IoU).
-
-    Parameters
-    ----------
-    path : str or path-like
-        The text file.
-    num_frames : int, optional
-        Length of the returned list (frames beyond the last line are empty); at least the
-        largest frame number in the file. Default: the largest frame number.
-    min_confidence : float, optional
-        Keep only rows whose column 7 (confidence / "consider" flag) is ``>= min_confidence``.
-        Default keeps every row, like py-motmetrics' ``loadtxt`` (whose default threshold −1 keeps
-        all rows of these files).
-
-    Returns
-    -------
-    list of dict
-        ``frames[k]`` is ``{id: ndarray [x, y, w, h]}`` for frame number ``k + 1``; integral ids
-        are returned as ``int``.
-
-    Raises
-    ------
-    ValueError
-        Malformed lines, frame numbers < 1, duplicate ``(frame, id)``, ``num_frames`` too small.
-
-    Examples
-    --------
-    >>> import os, tempfile
-    >>> with tempfile.TemporaryDirectory() as d:
-    ...     p = os.path.join(d, "gt.txt")
-    ...     with open(p, "w") as f:
-    ...         _ = f.write("1,7,10,20,30,40,1,-1,-1,-1\\n3,7,12,20,30,40,1,-1,-1,-1\\n")
-    ...     frames = load_mot_challenge(p)
-    >>> len(frames), frames[1], frames[2][7]
-    (3, {}, array([12., 20., 30., 40.]))
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"path {str(path)!r} is not a file")
-    rows: list[tuple[int, object, np.ndarray, float]] = []
-    with path.open() as fh:
-        for lineno, line in enumerate(fh, 1):
-            fields = line.replace(",", " ").split()
-            if not fields:
-                continue
-            if len(fields) < 6:
-                raise ValueError(f"path {path.name}: line {lineno} has {len(fields)} fields, need >= 6")
-            try:
-                vals = [float(v) for v in fields]
-            except ValueError:
-                raise ValueError(f"path {path.name}: line {lineno} is not numeric") from None
-            frame = vals[0]
-            if frame != int(frame) or frame < 1:
-                raise ValueError(f"path {path.name}: line {lineno} has invalid frame number {fields[0]}")
-            oid = int(vals[1]) if vals[1] == int(vals[1]) else vals[1]
-            conf = vals[6] if len(vals) > 6 else 1.0
-            rows.append((int(frame), oid, np.array(vals[2:6]), conf))
-    last = max((r[0] for r in rows), default=0)
-    if num_frames is None:
-        n = last
-    else:
-        if isinstance(num_frames, bool) or not isinstance(num_frames, numbers.Integral):
-            raise TypeError(f"num_frames must be an int, got {type(num_frames).__name__}")
-        n = int(num_frames)
-        if n < last:
-            raise ValueError(f"num_frames must be >= the last frame number {last}, got {n}")
-    frames: list[dict] = [{} for _ in range(n)]
-    for frame, oid, box, conf in rows:
-        if min_confidence is not None and conf < min_confidence:
-            continue
-        if oid in frames[frame - 1]:
-            raise ValueError(f"path {path.name}: duplicate id {oid!r} in frame {frame}")
-        frames[frame - 1][oid] = box
-    return frames
-
-
-def mot_challenge_paths(sequence: str = "TUD-Campus") -> tuple[Path, Path]:
-    """``(gt.txt, test.txt)`` of a MOT15 sequence shipped in the py-motmetrics wheel.
-
-    The motmetrics wheel (a ``dev`` extra) contains TUD-Campus and TUD-Stadtmitte with the CEM
-    tracker's output. The package is located without importing it (its code does not run on
-    NumPy 2).
-
-    Parameters
-    ----------
-    sequence : {"TUD-Campus", "TUD-Stadtmitte"}
-
-    Raises
-    ------
-    FileNotFoundError
-        If motmetrics is not installed or lacks the files.
-    """
-    if sequence not in ("TUD-Campus", "TUD-Stadtmitte"):
-        raise ValueError(f"sequence must be 'TUD-Campus' or 'TUD-Stadtmitte', got {sequence!r}")
-    spec = importlib.util.find_spec("motmetrics")
-    if spec is None or not spec.submodule_search_locations:
-        raise FileNotFoundError(
-            "the MOT15 files come with the py-motmetrics wheel: pip install 'motmetrics==1.4.0' "
-            "(only its data files are used)"
-        )
-    for loc in spec.submodule_search_locations:
-        d = Path(loc) / "data" / sequence
-        gt, test = d / "gt.txt", d / "test.txt"
-        if gt.is_file() and test.is_file():
-            return gt, test
-    raise FileNotFoundError(f"motmetrics is installed but has no data/{sequence}/gt.txt and test.txt")
-
-
-def tud_campus_paths() -> tuple[Path, Path]:
-    """``(gt_path, test_path)`` of MOT15 TUD-Campus in the installed py-motmetrics wheel.
-
-    Raises
-    ------
-    FileNotFoundError
-        If motmetrics is not installed.
-    """
-    return mot_challenge_paths("TUD-Campus")
-
-
-def mot_challenge_tracks(sequence: str = "TUD-Campus") -> tuple[list[dict], list[dict]]:
-    """Ground truth and CEM tracker output of a MOT15 sequence as :func:`clear_mot` inputs.
-
-    Parameters
-    ----------
-    sequence : {"TUD-Campus", "TUD-Stadtmitte"}
-
-    Returns
-    -------
-    (gt, hyp) : tuple of list of dict
-        Frames ``{id: [x, y, w, h]}`` covering the same frame numbers.
-    """
-    gt_path, test_path = mot_challenge_paths(sequence)
-    gt, hyp = load_mot_challenge(gt_path), load_mot_challenge(test_path)
-    n = max(len(gt), len(hyp))
-    return gt + [{} for _ in range(n - len(gt))], hyp + [{} for _ in range(n - len(hyp))]
-
-
-def tud_campus_tracks() -> tuple[list[dict], list[dict]]:
-    """Ground truth and CEM tracker output of MOT15 TUD-Campus as :func:`clear_mot` inputs.
-
-    ``clear_mot(gt, hyp, 0.5, "iou")`` gives the figures published in the py-motmetrics README:
-    MOTA 52.6 %, MOTP 0.277, IDF1 55.8 %, IDP 73.0 %, IDR 45.1 %, recall 58.2 %, precision 94.1 %,
-    FP 13, FN 150, 7 ID switches, 8 objects of which 1 mostly tracked, 6 partially, 1 lost.
-
-    Raises
-    ------
-    FileNotFoundError
-        If motmetrics (its data files) is not installed.
-    """
-    return mot_challenge_tracks("TUD-Campus")

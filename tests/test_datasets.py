@@ -1,15 +1,19 @@
-"""Tests of flowtrack.realdata (Middlebury 2014 Motorcycle shipped with scikit-image)."""
+"""Tests of flowtrack.datasets: Middlebury 2014 Motorcycle (shipped with scikit-image), MOTChallenge files."""
+
+import importlib.util
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
 from flowtrack.camera import depth_from_disparity
-from flowtrack.realdata import (
+from flowtrack.datasets import (
     MOTORCYCLE_CALIBRATION,
+    load_mot_challenge,
     motorcycle_cloud,
     motorcycle_depth,
     motorcycle_flow_case,
+    tud_campus_paths,
 )
 
 # numbers printed in the docstring of skimage.data.stereo_motorcycle (independent of the module)
@@ -127,3 +131,54 @@ def test_flow_case_noise_and_determinism():
 def test_bad_inputs(kwargs, exc, word):
     with pytest.raises(exc, match=word):
         motorcycle_flow_case(**kwargs)
+
+
+# --------------------------------------------------------------------------------------------------
+# MOTChallenge files
+# --------------------------------------------------------------------------------------------------
+HAVE_MOTMETRICS_DATA = importlib.util.find_spec("motmetrics") is not None
+needs_data = pytest.mark.skipif(not HAVE_MOTMETRICS_DATA, reason="motmetrics wheel (data files) missing")
+
+
+@needs_data
+def test_tud_campus_paths_point_at_the_wheel_files():
+    gt_path, test_path = tud_campus_paths()
+    assert gt_path.name == "gt.txt" and test_path.name == "test.txt"
+    assert gt_path.parent.name == "TUD-Campus"
+    frames = load_mot_challenge(gt_path)
+    assert len(frames) == 71
+    # first line of gt.txt: 1,1,399,182,121,229,1,-1,-1,-1
+    np.testing.assert_array_equal(frames[0][1], [399, 182, 121, 229])
+
+
+
+def test_load_mot_challenge(tmp_path):
+    p = tmp_path / "res.txt"
+    p.write_text("2 5 1.5 2 3 4 0.9\n2,6,0,0,1,1,0.2,-1,-1,-1\n\n4,5,2,2,3,4,1,-1,-1,-1\n")
+    frames = load_mot_challenge(p)
+    assert len(frames) == 4 and frames[0] == {} and frames[2] == {}
+    np.testing.assert_array_equal(frames[1][5], [1.5, 2, 3, 4])
+    assert set(frames[1]) == {5, 6}
+    assert set(load_mot_challenge(p, min_confidence=0.5)[1]) == {5}
+    assert len(load_mot_challenge(p, num_frames=6)) == 6
+    with pytest.raises(ValueError, match="num_frames"):
+        load_mot_challenge(p, num_frames=3)
+    dup = tmp_path / "dup.txt"
+    dup.write_text("1,1,0,0,1,1\n1,1,2,2,1,1\n")
+    with pytest.raises(ValueError, match="duplicate"):
+        load_mot_challenge(dup)
+    bad = tmp_path / "bad.txt"
+    bad.write_text("1,1,0,0\n")
+    with pytest.raises(ValueError, match="path"):
+        load_mot_challenge(bad)
+    with pytest.raises(ValueError, match="path"):
+        load_mot_challenge(tmp_path / "missing.txt")
+
+
+
+def test_deprecated_realdata_path_reexports_the_datasets_names():
+    import flowtrack.datasets as datasets
+    import flowtrack.realdata as realdata
+
+    for name in realdata.__all__:
+        assert getattr(realdata, name) is getattr(datasets, name)
