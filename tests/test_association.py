@@ -7,7 +7,14 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
-from flowtrack.association import assign, chi2_gate, greedy_assign, hungarian, mahalanobis_cost
+from flowtrack.association import (
+    assign,
+    chi2_gate,
+    greedy_assign,
+    hungarian,
+    mahalanobis_cost,
+    mahalanobis_from_cholesky,
+)
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -302,3 +309,43 @@ def test_hungarian_empty_and_bad():
     assert r.size == 0 and c.size == 0
     with pytest.raises(ValueError, match="cost"):
         hungarian(np.array([[1.0, np.inf]]))
+
+
+# ----------------------------------------------------------------------------- public hot-path forms
+
+
+@pytest.mark.parametrize("m", [1, 2, 3, 4])
+def test_mahalanobis_from_cholesky_matches_explicit_inverse(rng, m):
+    S = np.stack([random_spd(rng, m) for _ in range(5)])
+    z_pred, Z = rng.normal(size=(5, m)), rng.normal(size=(7, m))
+    L = np.linalg.cholesky(S)
+    d = Z[None, :, :] - z_pred[:, None, :]
+    expected = np.einsum("ijk,ikl,ijl->ij", d, np.linalg.inv(S), d)
+    for validate in (True, False):
+        got = mahalanobis_from_cholesky(z_pred, L, Z, validate=validate)
+        np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12)
+
+
+def test_mahalanobis_from_cholesky_rejects_bad_factors():
+    with pytest.raises(ValueError, match="L must have a positive diagonal"):
+        mahalanobis_from_cholesky([[0.0]], [[[0.0]]], [[1.0]])
+    with pytest.raises(ValueError, match="L"):
+        mahalanobis_from_cholesky([[0.0, 0.0]], np.eye(2), [[1.0, 0.0]])
+    with pytest.raises(ValueError, match="Z"):
+        mahalanobis_from_cholesky([[0.0, 0.0]], [np.eye(2)], [[np.nan, 0.0]])
+
+
+@pytest.mark.parametrize("solver", [assign, greedy_assign])
+def test_unvalidated_assignment_is_the_validated_one(rng, solver):
+    for _ in range(20):
+        cost = rng.uniform(0, 10, size=(rng.integers(0, 5), rng.integers(0, 5)))
+        cost[rng.random(cost.shape) < 0.2] = np.inf
+        fast = solver(cost, 6.0, validate=False)
+        for a, b in zip(fast, solver(cost, 6.0), strict=True):
+            np.testing.assert_array_equal(a, b)
+        if solver is assign:
+            k, total = brute_force_assignment(cost, 6.0)
+            assert len(fast[0]) == k
+            assert np.isclose(cost[fast[0][:, 0], fast[0][:, 1]].sum(), total)
+    with pytest.raises(ValueError, match="NaN"):
+        solver(np.array([[np.nan]]), 1.0)

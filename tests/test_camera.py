@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 from flowtrack.camera import (
     PinholeCamera,
     backproject,
+    backproject_pixels,
+    check_camera,
     depth_from_disparity,
     optical_flow_from_scene_flow,
     project,
@@ -202,3 +204,25 @@ def test_depth_from_disparity_bad_arguments(kwargs, exc, match):
     args = {"disparity": [1.0, 2.0], "focal_px": 500.0, "baseline": 0.1, "doffs": 0.0, **kwargs}
     with pytest.raises(exc, match=match):
         depth_from_disparity(**args)
+
+
+def test_backproject_pixels_inverts_the_intrinsics(rng):
+    u, v = rng.uniform(0, 640, size=20), rng.uniform(0, 480, size=20)
+    Z = rng.uniform(0.5, 3.0, size=20)
+    expected = (np.linalg.inv(CAM.K) @ np.stack([u, v, np.ones_like(u)])).T * Z[:, None]
+    np.testing.assert_allclose(backproject_pixels(u, v, Z, CAM), expected, rtol=1e-12)
+    grid = backproject_pixels(np.arange(3.0), np.arange(2.0)[:, None], 1.0, CAM)
+    assert grid.shape == (2, 3, 3)
+    assert np.isnan(backproject_pixels(1.0, 1.0, np.nan, CAM)).all()
+
+
+def test_backproject_pixels_and_check_camera_bad_inputs():
+    with pytest.raises(TypeError, match="cam must be a PinholeCamera"):
+        backproject_pixels(0.0, 0.0, 1.0, "cam")
+    with pytest.raises(ValueError, match="broadcast"):
+        backproject_pixels(np.zeros(2), np.zeros(3), 1.0, CAM)
+    with pytest.raises(ValueError, match="Z"):
+        backproject_pixels(0.0, 0.0, np.inf, CAM)
+    with pytest.raises(ValueError, match="camera must have width and height"):
+        check_camera(PinholeCamera(1.0, 1.0, 0.0, 0.0), "camera", require_size=True)
+    assert check_camera(CAM, require_size=True) is CAM

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from flowtrack import sceneflow
 from flowtrack.sceneflow import (
+    check_affinity,
     graph_laplacian,
     graph_scene_flow,
     knn_graph,
@@ -480,3 +481,17 @@ def test_graph_flow_without_cholmod(rng, monkeypatch):
         np.testing.assert_allclose(V, expected, rtol=1e-8, atol=1e-8 * np.abs(expected).max())
     with pytest.raises(ValueError, match="solver"):
         graph_scene_flow(X, Y, 0.1, 0.1, k=5, solver="cholmod")
+
+
+def test_check_affinity_accepts_dense_and_sparse_and_names_the_problem():
+    W = np.array([[0.0, 2.0], [2.0, 0.0]])
+    for given_W in (W, sp.coo_matrix(W)):
+        out = check_affinity(given_W)
+        assert sp.issparse(out)
+        np.testing.assert_array_equal(out.toarray(), W)
+    with pytest.raises(ValueError, match="Wx must be symmetric"):
+        check_affinity([[0.0, 1.0], [2.0, 0.0]], "Wx")
+    with pytest.raises(ValueError, match="non-negative"):
+        check_affinity(-W)
+    with pytest.raises(ValueError, match=r"shape \(3, 3\)"):
+        check_affinity(W, n=3)

@@ -39,16 +39,12 @@ __all__ = [
     "greedy_assign",
     "hungarian",
     "mahalanobis_cost",
+    "mahalanobis_from_cholesky",
 ]
 
 
 def _mahalanobis_from_cholesky(z_pred: np.ndarray, L: np.ndarray, Z: np.ndarray) -> np.ndarray:
-    """Squared Mahalanobis distances from the Cholesky factors; no validation (hot path).
-
-    Solves :math:`L_i y_{ij} = z_j - \\hat z_i` by forward substitution, vectorised over all
-    (i, j) pairs (the loops run over the ``m`` measurement components only), and returns
-    :math:`\\|y_{ij}\\|^2`.
-    """
+    """Squared Mahalanobis distances from the Cholesky factors; no validation (hot path)."""
     m = z_pred.shape[1]
     ys: list[np.ndarray] = []  # ys[k][i, j] = k-th component of y_ij
     cost = np.zeros((z_pred.shape[0], Z.shape[0]))
@@ -60,6 +56,57 @@ def _mahalanobis_from_cholesky(z_pred: np.ndarray, L: np.ndarray, Z: np.ndarray)
         ys.append(acc)
         cost += acc * acc
     return cost
+
+
+def mahalanobis_from_cholesky(z_pred, L, Z, *, validate: bool = True) -> np.ndarray:
+    r"""Squared Mahalanobis distances :math:`\|L_i^{-1}(z_j - \hat z_i)\|^2` from Cholesky factors.
+
+    Solves :math:`L_i y_{ij} = z_j - \hat z_i` by forward substitution, vectorised over all
+    :math:`(i, j)` pairs (the loops run over the ``m`` measurement components only), and returns
+    :math:`\|y_{ij}\|^2`. With :math:`S_i = L_i L_i^\top` this is :func:`mahalanobis_cost`
+    without the factorisation, for a caller that already has the factors (the tracker also needs
+    their log-determinants).
+
+    Parameters
+    ----------
+    z_pred : array_like, shape (M, m)
+        Predicted measurements.
+    L : array_like, shape (M, m, m)
+        Lower Cholesky factors of the innovation covariances (only the lower triangle is read);
+        positive diagonal.
+    Z : array_like, shape (N, m)
+        Detections.
+    validate : bool
+        ``False`` skips the checks (the tracker's hot path, which built the arrays itself): then
+        the inputs must be float ndarrays of the shapes above, finite, with ``L``'s diagonal > 0.
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, N)
+
+    Raises
+    ------
+    ValueError
+        Wrong shapes, NaN/inf, or a diagonal entry of ``L`` that is not positive.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> L = np.stack([np.eye(2), 2.0 * np.eye(2)])
+    >>> mahalanobis_from_cholesky([[0.0, 0.0], [10.0, 0.0]], L, [[1.0, 0.0], [10.0, 2.0]])
+    array([[  1.  , 104.  ],
+           [ 20.25,   1.  ]])
+    """
+    if validate:
+        z_pred = as_array(z_pred, "z_pred", (None, None))
+        M, m = z_pred.shape
+        if m < 1:
+            raise ValueError(f"z_pred must have shape (M, m) with m >= 1, got {z_pred.shape}")
+        L = as_array(L, "L", (M, m, m))
+        Z = as_array(Z, "Z", (None, m))
+        if not (np.diagonal(L, axis1=-2, axis2=-1) > 0).all():
+            raise ValueError("L must have a positive diagonal (lower Cholesky factors)")
+    return _mahalanobis_from_cholesky(z_pred, L, Z)
 
 
 def mahalanobis_cost(z_pred, S, Z) -> np.ndarray:
@@ -170,7 +217,7 @@ def _check_cost_gate(cost, gate):
     return cost, gate
 
 
-def _assign_unchecked(cost: np.ndarray, gate: float):
+def _assign(cost: np.ndarray, gate: float):
     """Gated max-cardinality / min-cost assignment on a validated NaN-free cost matrix."""
     M, N = cost.shape
     if M == 0 or N == 0:
@@ -223,7 +270,7 @@ def _assign_unchecked(cost: np.ndarray, gate: float):
     return matches, np.flatnonzero(free_rows), np.flatnonzero(free_cols)
 
 
-def assign(cost, gate=np.inf):
+def assign(cost, gate=np.inf, *, validate: bool = True):
     r"""Gated linear assignment: the most admissible pairs, then the least total cost.
 
     A pair ``(i, j)`` is *admissible* when ``cost[i, j] <= gate`` and ``cost[i, j]`` is finite
@@ -249,6 +296,10 @@ def assign(cost, gate=np.inf):
         rejected. ``M`` or ``N`` may be 0.
     gate : float
         Pairs with ``cost > gate`` are never matched (default: no gate).
+    validate : bool
+        ``False`` skips the checks of ``cost`` and ``gate`` (the tracker's hot path, which built
+        ``cost`` itself): then ``cost`` must be a float ndarray of shape ``(M, N)`` without NaN or
+        ``-inf`` and ``gate`` a float that is not NaN.
 
     Returns
     -------
@@ -277,11 +328,12 @@ def assign(cost, gate=np.inf):
     >>> matches, ut, ud
     (array([[0, 0]]), array([], dtype=int64), array([1, 2]))
     """
-    cost, gate = _check_cost_gate(cost, gate)
-    return _assign_unchecked(cost, gate)
+    if validate:
+        cost, gate = _check_cost_gate(cost, gate)
+    return _assign(cost, gate)
 
 
-def greedy_assign(cost, gate=np.inf):
+def greedy_assign(cost, gate=np.inf, *, validate: bool = True):
     r"""Greedy (locally nearest-neighbour) gated assignment, for comparison with :func:`assign`.
 
     Repeatedly takes the cheapest remaining admissible pair (``cost <= gate``, finite) whose row and
@@ -295,6 +347,10 @@ def greedy_assign(cost, gate=np.inf):
         Pair costs; ``inf`` allowed (never matched), NaN and ``-inf`` rejected.
     gate : float
         Pairs with ``cost > gate`` are never matched (default: no gate).
+    validate : bool
+        ``False`` skips the checks of ``cost`` and ``gate`` (the tracker's hot path, which built
+        ``cost`` itself): then ``cost`` must be a float ndarray of shape ``(M, N)`` without NaN or
+        ``-inf`` and ``gate`` a float that is not NaN.
 
     Returns
     -------
@@ -308,11 +364,12 @@ def greedy_assign(cost, gate=np.inf):
     array([[0, 0],
            [1, 1]])
     """
-    cost, gate = _check_cost_gate(cost, gate)
-    return _greedy_unchecked(cost, gate)
+    if validate:
+        cost, gate = _check_cost_gate(cost, gate)
+    return _greedy_assign(cost, gate)
 
 
-def _greedy_unchecked(cost: np.ndarray, gate: float):
+def _greedy_assign(cost: np.ndarray, gate: float):
     M, N = cost.shape
     ok = np.isfinite(cost) & (cost <= gate)
     cand = np.flatnonzero(ok)

@@ -27,6 +27,8 @@ __all__ = [
     "project",
     "projection_jacobian",
     "backproject",
+    "backproject_pixels",
+    "check_camera",
     "depth_from_disparity",
     "optical_flow_from_scene_flow",
     "scene_flow_from_optical_flow",
@@ -95,22 +97,95 @@ class PinholeCamera:
         return cls(K[0, 0], K[1, 1], K[0, 2], K[1, 2], width, height)
 
 
-def _check_cam(cam, name: str = "cam") -> PinholeCamera:
+def check_camera(cam, name: str = "cam", *, require_size: bool = False) -> PinholeCamera:
+    """Check that ``cam`` is a :class:`PinholeCamera` (with ``width`` and ``height`` if required).
+
+    Parameters
+    ----------
+    cam : PinholeCamera
+    name : str
+        The argument's name, used in error messages.
+    require_size : bool
+        Also require the image size (``width`` and ``height`` not None).
+
+    Returns
+    -------
+    PinholeCamera
+        ``cam`` itself.
+
+    Raises
+    ------
+    TypeError
+        ``cam`` is not a :class:`PinholeCamera`.
+    ValueError
+        ``require_size`` and the camera has no width or height.
+
+    Examples
+    --------
+    >>> check_camera(PinholeCamera(1.0, 1.0, 0.0, 0.0), require_size=True)
+    Traceback (most recent call last):
+    ...
+    ValueError: cam must have width and height
+    """
     if not isinstance(cam, PinholeCamera):
         raise TypeError(f"{name} must be a PinholeCamera, got {type(cam).__name__}")
+    if require_size and (cam.width is None or cam.height is None):
+        raise ValueError(f"{name} must have width and height")
     return cam
 
 
 def _backproject_pixels(u, v, Z, cam: PinholeCamera) -> np.ndarray:
-    """``Z · ((u - cx)/fx, (v - cy)/fy, 1)`` at column coordinates ``u`` and row coordinates ``v``.
-
-    ``u``, ``v`` and ``Z`` broadcast against each other; the result has their shape + (3,).
-    """
+    """``Z · ((u - cx)/fx, (v - cy)/fy, 1)``; no validation (see :func:`backproject_pixels`)."""
     out = np.empty((*np.broadcast_shapes(np.shape(u), np.shape(v), np.shape(Z)), 3))
     out[..., 0] = (u - cam.cx) / cam.fx * Z
     out[..., 1] = (v - cam.cy) / cam.fy * Z
     out[..., 2] = Z
     return out
+
+
+def backproject_pixels(u, v, Z, cam: PinholeCamera) -> np.ndarray:
+    r"""Back-project pixels with known depth: :math:`X = Z\,((u - c_x)/f_x,\ (v - c_y)/f_y,\ 1)`.
+
+    The pixel-wise form of :func:`backproject` for any set of pixels (e.g. every ``step``-th row
+    and column of an image).
+
+    Parameters
+    ----------
+    u, v : array_like
+        Column and row coordinates (pixels), finite.
+    Z : array_like
+        Depths; NaN gives a NaN point (an invalid pixel), inf is rejected.
+    cam : PinholeCamera
+
+    ``u``, ``v`` and ``Z`` broadcast against each other.
+
+    Returns
+    -------
+    ndarray, shape ``broadcast(u, v, Z).shape + (3,)``
+
+    Raises
+    ------
+    TypeError
+        ``cam`` is not a :class:`PinholeCamera`, or non-numeric input.
+    ValueError
+        Shapes that do not broadcast, NaN or inf in ``u``/``v``, inf in ``Z``.
+
+    Examples
+    --------
+    >>> cam = PinholeCamera(2.0, 2.0, 1.0, 1.0)
+    >>> backproject_pixels([1.0, 3.0], 1.0, [1.0, 2.0], cam)
+    array([[0., 0., 1.],
+           [2., 0., 2.]])
+    """
+    cam = check_camera(cam)
+    u = as_array(u, "u")
+    v = as_array(v, "v")
+    Z = as_array(Z, "Z", allow_nan=True)
+    try:
+        np.broadcast_shapes(u.shape, v.shape, Z.shape)
+    except ValueError:
+        raise ValueError(f"u, v and Z must broadcast, got shapes {u.shape}, {v.shape}, {Z.shape}") from None
+    return _backproject_pixels(u, v, Z, cam)
 
 
 def _points(X, name: str = "X") -> np.ndarray:
@@ -140,7 +215,7 @@ def project(X, cam: PinholeCamera) -> np.ndarray:
     >>> project([[0.1, -0.2, 2.0]], cam)
     array([[55., 30.]])
     """
-    cam = _check_cam(cam)
+    cam = check_camera(cam)
     X = _points(X)
     x = cam.fx * X[:, 0] / X[:, 2] + cam.cx
     y = cam.fy * X[:, 1] / X[:, 2] + cam.cy
@@ -168,7 +243,7 @@ def projection_jacobian(X, cam: PinholeCamera) -> np.ndarray:
     array([[ 25.  ,   0.  ,  -6.25],
            [  0.  ,  25.  , -12.5 ]])
     """
-    cam = _check_cam(cam)
+    cam = check_camera(cam)
     X = _points(X)
     inv_z = 1.0 / X[:, 2]
     J = np.zeros((X.shape[0], 2, 3))
@@ -202,7 +277,7 @@ def backproject(depth, cam: PinholeCamera, depth_scale: float = 1.0) -> np.ndarr
     array([[ 0.,  0.,  2.],
            [nan, nan, nan]])
     """
-    cam = _check_cam(cam)
+    cam = check_camera(cam)
     scale = positive(depth_scale, "depth_scale")
     arr = np.asarray(depth)
     if arr.dtype == object or not np.issubdtype(arr.dtype, np.number):
@@ -349,7 +424,7 @@ def scene_flow_from_optical_flow(depth_t, depth_t1, flow_uv, dt: float, cam: Pin
     ndarray, shape (H, W, 3)
         Velocity per pixel; NaN where either depth is invalid or the flow leaves the image.
     """
-    cam = _check_cam(cam)
+    cam = check_camera(cam)
     dt = positive(dt, "dt")
     d0 = as_array(depth_t, "depth_t", ("H", "W"), allow_nan=True)
     d1 = as_array(depth_t1, "depth_t1", d0.shape, allow_nan=True)

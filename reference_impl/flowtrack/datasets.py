@@ -38,7 +38,7 @@ import numpy as np
 
 from ._graph import apply_transform
 from ._validation import _scalar, nonnegative, positive, positive_int
-from .camera import PinholeCamera, _backproject_pixels, depth_from_disparity
+from .camera import PinholeCamera, backproject_pixels, depth_from_disparity
 
 __all__ = [
     "FRONT_WHEEL_PIXELS",
@@ -151,7 +151,7 @@ def motorcycle_cloud(step: int = 4, return_pixels: bool = False):
     valid = depth > 0
     rows = np.arange(0, disp.shape[0], step, dtype=np.float64)
     cols = np.arange(0, disp.shape[1], step, dtype=np.float64)
-    X = _backproject_pixels(cols, rows[:, None], depth, motorcycle_camera())[valid]
+    X = backproject_pixels(cols, rows[:, None], depth, motorcycle_camera())[valid]
     colors = left[::step, ::step][valid].astype(np.float64) / 255.0
     if return_pixels:
         return X, colors, np.argwhere(valid) * step

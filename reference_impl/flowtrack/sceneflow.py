@@ -55,6 +55,7 @@ __all__ = [
     "variational_scene_flow",
     "knn_graph",
     "graph_laplacian",
+    "check_affinity",
     "graph_scene_flow",
     "nearest_neighbor_targets",
     "iterative_graph_scene_flow",
@@ -145,8 +146,39 @@ def knn_graph(points, k: int = 8, sigma=None) -> sp.csr_matrix:
     return W
 
 
-def _as_affinity(W, name: str = "W", n: int | None = None) -> sp.csr_matrix:
-    """Validate an affinity matrix (dense or sparse): square, finite, non-negative, symmetric."""
+def check_affinity(W, name: str = "W", n: int | None = None) -> sp.csr_matrix:
+    """Validate an affinity matrix (dense or sparse): square, finite, non-negative, symmetric.
+
+    The check :func:`graph_laplacian` and :func:`graph_scene_flow` apply to their ``W``.
+
+    Parameters
+    ----------
+    W : array_like or scipy.sparse matrix, shape (N, N)
+        Real affinities.
+    name : str
+        The argument's name, used in error messages.
+    n : int, optional
+        Required size ``N`` (e.g. the number of points).
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (N, N)
+        A float64 copy.
+
+    Raises
+    ------
+    TypeError
+        Non-numeric or complex entries.
+    ValueError
+        Not square, wrong size, NaN/inf, negative entries, not symmetric (relative tolerance 1e-12).
+
+    Examples
+    --------
+    >>> check_affinity([[0.0, 1.0], [2.0, 0.0]])
+    Traceback (most recent call last):
+    ...
+    ValueError: W must be symmetric (W == W.T)
+    """
     if sp.issparse(W):
         if W.ndim != 2 or W.shape[0] != W.shape[1]:
             raise ValueError(f"{name} must be a square (N, N) matrix, got shape {W.shape}")
@@ -197,7 +229,7 @@ def graph_laplacian(W) -> sp.csr_matrix:
     array([[ 2., -2.],
            [-2.,  2.]])
     """
-    return laplacian(_as_affinity(W, "W"))
+    return laplacian(check_affinity(W, "W"))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -344,7 +376,7 @@ def graph_scene_flow(
         raise ValueError(f"solver must be one of {_SOLVERS}, got {solver!r}")
     n = X.shape[0]
     if W is not None:
-        Wm = _as_affinity(W, "W", n)
+        Wm = check_affinity(W, "W", n)
     else:
         k = positive_int(k, "k")
         if sigma is not None:

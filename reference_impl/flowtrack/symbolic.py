@@ -543,9 +543,9 @@ def _small_int(value, name: str, minimum: int, maximum: int) -> int:
 
 def _weight_matrix(W, name: str, n_max: int) -> np.ndarray:
     """A dense, symmetric, non-negative (N, N) weight matrix with 2 <= N <= n_max (a fresh copy)."""
-    from .sceneflow import _as_affinity  # the affinity check of graph scene flow, dense or sparse
+    from .sceneflow import check_affinity  # the affinity check of graph scene flow, dense or sparse
 
-    A = _as_affinity(W, name).toarray()
+    A = check_affinity(W, name).toarray()
     if not 2 <= A.shape[0] <= n_max:
         raise ValueError(f"{name} must have shape (N, N) with 2 <= N <= {n_max}, got {A.shape}")
     return A

@@ -35,7 +35,7 @@ import numpy as np
 
 from ._graph import apply_transform
 from ._validation import as_array, nonnegative, positive, positive_int
-from .camera import PinholeCamera, _check_cam, backproject, project
+from .camera import PinholeCamera, backproject, check_camera, project
 
 __all__ = [
     "SCENARIOS",
@@ -377,15 +377,8 @@ def ray_directions(camera: PinholeCamera) -> np.ndarray:
     >>> ray_directions(PinholeCamera(1.0, 1.0, 0.0, 0.0, width=2, height=1)).tolist()
     [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]]
     """
-    cam = _check_camera(camera)
+    cam = check_camera(camera, "camera", require_size=True)
     return backproject(np.ones((cam.height, cam.width)), cam).reshape(-1, 3)  # depth Z = 1
-
-
-def _check_camera(camera) -> PinholeCamera:
-    _check_cam(camera, "camera")
-    if camera.width is None or camera.height is None:
-        raise ValueError("camera must have width and height")
-    return camera
 
 
 @dataclass
@@ -517,7 +510,7 @@ def ray_cast(camera: PinholeCamera, bodies: Sequence[Body], dirs: np.ndarray | N
            [2., 2., 2.],
            [2., 2., 2.]])
     """
-    cam = _check_camera(camera)
+    cam = check_camera(camera, "camera", require_size=True)
     H, W = cam.height, cam.width
     dirs = ray_directions(cam) if dirs is None else as_array(dirs, "dirs", (H * W, 3))
     rc = _empty_cast(H, W)

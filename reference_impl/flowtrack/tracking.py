@@ -60,12 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._validation import as_array, cholesky, nonnegative, positive, positive_int, probability, spatial_dim
-from .association import (
-    _assign_unchecked,
-    _greedy_unchecked,
-    _mahalanobis_from_cholesky,
-    chi2_gate,
-)
+from .association import assign, chi2_gate, greedy_assign, mahalanobis_from_cholesky
 from .kalman import BatchKalmanFilter, constant_velocity_model
 
 __all__ = [
@@ -191,7 +186,7 @@ class GNNAssociator:
 
     def assigner(self, cost: np.ndarray, gate: float):
         """Most admissible pairs, then least cost (:func:`flowtrack.association.assign`)."""
-        return _assign_unchecked(cost, gate)
+        return assign(cost, gate, validate=False)
 
     def associate(self, z_pred: np.ndarray, S: np.ndarray, detections: np.ndarray):
         """Return ``(matches (K, 2), unmatched_tracks, unmatched_detections)``."""
@@ -200,7 +195,7 @@ class GNNAssociator:
         if M == 0 or N == 0:
             return self.assigner(np.zeros((M, N)), gate)
         L = cholesky(S, "S")
-        d2 = _mahalanobis_from_cholesky(z_pred, L, detections)
+        d2 = mahalanobis_from_cholesky(z_pred, L, detections, validate=False)
         if not self.log_det:
             return self.assigner(d2, gate)
         logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
@@ -218,7 +213,7 @@ class GreedyAssociator(GNNAssociator):
     """
 
     def assigner(self, cost: np.ndarray, gate: float):
-        return _greedy_unchecked(cost, gate)
+        return greedy_assign(cost, gate, validate=False)
 
 
 class KalmanUpdater:
