@@ -1,7 +1,7 @@
 """Sparse-graph and linear-algebra helpers shared by the scene-flow and clustering modules.
 
 Private: :mod:`flowtrack.sceneflow`, :mod:`flowtrack.variational`, :mod:`flowtrack.clustering`,
-:mod:`flowtrack.synth` and :mod:`flowtrack.realdata` build on these; none of them validates its
+:mod:`flowtrack.synth` and :mod:`flowtrack.datasets` build on these; none of them validates its
 input beyond what its docstring says (the public callers do that).
 
 - :func:`knn_edges` — directed k-nearest-neighbour edges of a point cloud, self-pairs removed.
