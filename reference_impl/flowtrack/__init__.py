@@ -4,12 +4,18 @@ The reference implementation of the flowtrack course. Modules:
 
 - :mod:`flowtrack.camera` – pinhole projection, its Jacobian, back-projection, optical/scene flow.
 - :mod:`flowtrack.sceneflow` – variational (grid), graph (point cloud) and rigid (ICP) scene flow, metrics.
+- :mod:`flowtrack.variational` – the solvers of variational scene flow on the pixel grid.
 - :mod:`flowtrack.clustering` – motion clustering of scene flow into objects (Problem 5).
-- :mod:`flowtrack.kalman`, :mod:`flowtrack.bayes`, :mod:`flowtrack.particle` – Bayes filtering.
+- :mod:`flowtrack.kalman`, :mod:`flowtrack.bayes`, :mod:`flowtrack.particle` – Bayes filtering;
+  :mod:`flowtrack.batch_kalman` – the Kalman filter for many tracks at once (re-exported by ``kalman``).
 - :mod:`flowtrack.association`, :mod:`flowtrack.tracking` – data association, multi-object tracker.
 - :mod:`flowtrack.metrics` – CLEAR-MOT and identity metrics.
-- :mod:`flowtrack.synth` – synthetic RGB-D scenes with exact ground truth.
-- :mod:`flowtrack.realdata` – real data shipped inside installed packages (Middlebury Motorcycle).
+- :mod:`flowtrack.synth` – synthetic RGB-D scenes with exact ground truth (a package: shapes, ray
+  casting, scenarios, scenes).
+- :mod:`flowtrack.datasets` – real data shipped inside installed packages (Middlebury Motorcycle,
+  MOT15 TUD-Campus).
+- :mod:`flowtrack.symbolic` – the sympy derivations, one module per lesson.
+- :mod:`flowtrack.rgbd_io` – RGB-D sequences from disk (TUM layout) and stereo pairs.
 
 Submodules are imported lazily so that ``import flowtrack`` stays cheap.
 """
@@ -26,13 +32,15 @@ _SUBMODULES = {
     "variational",
     "clustering",
     "kalman",
+    "batch_kalman",
     "bayes",
     "particle",
     "association",
     "tracking",
     "metrics",
     "synth",
-    "realdata",
+    "datasets",
+    "rgbd_io",
     "symbolic",
     "widgets",
 }
