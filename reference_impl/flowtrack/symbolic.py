@@ -701,7 +701,7 @@ def graph_normal_equations_numeric(points_t, targets, dt, lam, W) -> tuple[np.nd
     --------
     >>> M, b = graph_normal_equations_numeric([[0, 0, 0], [1, 0, 0]], [[1, 0, 0], [1, 0, 0]], 1.0, 1.0,
     ...                                      [[0, 1], [1, 0]])
-    >>> np.linalg.solve(M, b).reshape(2, 3)[:, 0]  # smoothing moves half the motion to point 2
+    >>> np.linalg.solve(M, b).reshape(2, 3)[:, 0]  # smoothing moves one third of the motion to point 2
     array([0.66666667, 0.33333333])
     """
     X = as_array(points_t, "points_t", ("N", 3))
