@@ -123,3 +123,96 @@ def sweeps(M, rhs, Wv, Wh, s, n_sweeps):
                     s[i, j, 0] = (A * b0 + B * b1 + C * b2) * r
                     s[i, j, 1] = (B * b0 + D * b1 + E * b2) * r
                     s[i, j, 2] = (C * b0 + E * b1 + F * b2) * r
+
+
+@_jit
+def _apply(M, Wv, Wh, x, out):
+    """out = A x with A = blockdiag(M_p) - (W off-diagonal), M_p = N_p + deg_p I (6 entries)."""
+    H, W = Wh.shape[0], Wv.shape[1]
+    for i in range(H):
+        for j in range(W):
+            x0, x1, x2 = x[i, j, 0], x[i, j, 1], x[i, j, 2]
+            o0 = M[i, j, 0] * x0 + M[i, j, 1] * x1 + M[i, j, 2] * x2
+            o1 = M[i, j, 1] * x0 + M[i, j, 3] * x1 + M[i, j, 4] * x2
+            o2 = M[i, j, 2] * x0 + M[i, j, 4] * x1 + M[i, j, 5] * x2
+            if i > 0:
+                w = Wv[i - 1, j]
+                o0 -= w * x[i - 1, j, 0]
+                o1 -= w * x[i - 1, j, 1]
+                o2 -= w * x[i - 1, j, 2]
+            if i < H - 1:
+                w = Wv[i, j]
+                o0 -= w * x[i + 1, j, 0]
+                o1 -= w * x[i + 1, j, 1]
+                o2 -= w * x[i + 1, j, 2]
+            if j > 0:
+                w = Wh[i, j - 1]
+                o0 -= w * x[i, j - 1, 0]
+                o1 -= w * x[i, j - 1, 1]
+                o2 -= w * x[i, j - 1, 2]
+            if j < W - 1:
+                w = Wh[i, j]
+                o0 -= w * x[i, j + 1, 0]
+                o1 -= w * x[i, j + 1, 1]
+                o2 -= w * x[i, j + 1, 2]
+            out[i, j, 0] = o0
+            out[i, j, 1] = o1
+            out[i, j, 2] = o2
+
+
+@_jit
+def _precondition(M, r, z):
+    """z = blockdiag(M_p)^-1 r (each 3x3 block by its adjugate); returns r . z."""
+    H, W = r.shape[0], r.shape[1]
+    rz = 0.0
+    for i in range(H):
+        for j in range(W):
+            a = M[i, j, 0]
+            b = M[i, j, 1]
+            c = M[i, j, 2]
+            d = M[i, j, 3]
+            e = M[i, j, 4]
+            f = M[i, j, 5]
+            A = d * f - e * e
+            B = c * e - b * f
+            C = b * e - c * d
+            D = a * f - c * c
+            E = b * c - a * e
+            F = a * d - b * b
+            q = 1.0 / (a * A + b * B + c * C)
+            r0, r1, r2 = r[i, j, 0], r[i, j, 1], r[i, j, 2]
+            z0 = (A * r0 + B * r1 + C * r2) * q
+            z1 = (B * r0 + D * r1 + E * r2) * q
+            z2 = (C * r0 + E * r1 + F * r2) * q
+            z[i, j, 0] = z0
+            z[i, j, 1] = z1
+            z[i, j, 2] = z2
+            rz += r0 * z0 + r1 * z1 + r2 * z2
+    return rz
+
+
+@_jit
+def pcg(M, rhs, Wv, Wh, s, n_iter):
+    """``n_iter`` block-Jacobi preconditioned CG iterations on A s = rhs from ``s`` (updated in place)."""
+    r = np.empty_like(s)
+    _apply(M, Wv, Wh, s, r)
+    r[:] = rhs - r
+    z = np.empty_like(s)
+    rz = _precondition(M, r, z)
+    p = z.copy()
+    q = np.empty_like(s)
+    for _ in range(n_iter):
+        if rz <= 0.0:
+            break
+        _apply(M, Wv, Wh, p, q)
+        pq = np.sum(p * q)
+        if pq <= 0.0:
+            break
+        alpha = rz / pq
+        s += alpha * p
+        r -= alpha * q
+        rz_new = _precondition(M, r, z)
+        beta = rz_new / rz
+        rz = rz_new
+        p[:] = z + beta * p
+    return s

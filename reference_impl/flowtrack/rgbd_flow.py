@@ -126,6 +126,7 @@ PENALTIES = ("charbonnier", "quadratic")
 
 #: weight of the smoothness edges that touch a pixel without depth at t
 _HOLE_EDGE_WEIGHT = 0.05
+_DEBUG = False
 
 _DEFAULTS = {
     "lam": 0.05,
@@ -619,7 +620,7 @@ def _level(I0, D0, I1, D1, intr, s, o, colours):
                 M = np.empty((H, W, 6))
                 rhs = np.empty((H, W, 3))
                 K.assemble(a_i, a_d, c_i, c_d, r_i, r_d, prob.s0, Wv, Wh, M, rhs)
-                K.sweeps(M, rhs, Wv, Wh, s, o["sweeps"])
+                K.pcg(M, rhs, Wv, Wh, s, o["sweeps"])
     return s, prob
 
 
@@ -703,6 +704,7 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
         red = (i + j) % 2 == 0
         colours = (np.nonzero(red), np.nonzero(~red))
         s, prob = _level(Il0, Dl0, Il1, Dl1, intr, s, o, colours)
+        if _DEBUG: print("level", lev, (h, w), np.median(s[..., 0]), np.median(s[..., 1]), np.median(s[..., 2]))
     v = s / dt
     v[~(D0 > 0)] = np.nan
     if o["return_info"]:
