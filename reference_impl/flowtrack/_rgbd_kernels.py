@@ -77,58 +77,10 @@ def assemble(a_i, a_d, c_i, c_d, r_i, r_d, s0, Wv, Wh, M, rhs):
 
 
 @_jit
-def sweeps(M, rhs, Wv, Wh, s, n_sweeps):
-    """``n_sweeps`` red-black block Gauss–Seidel sweeps on A s = rhs, ``s (H, W, 3)`` in place."""
+def _apply_dot(M, Wv, Wh, x, out):
+    """out = A x with A = blockdiag(M_p) - (W off-diagonal), M_p = N_p + deg_p I (6 entries); returns x . out."""
     H, W = Wh.shape[0], Wv.shape[1]
-    for _ in range(n_sweeps):
-        for colour in range(2):
-            for i in range(H):
-                for j in range((i + colour) % 2, W, 2):
-                    b0 = rhs[i, j, 0]
-                    b1 = rhs[i, j, 1]
-                    b2 = rhs[i, j, 2]
-                    if i > 0:
-                        w = Wv[i - 1, j]
-                        b0 += w * s[i - 1, j, 0]
-                        b1 += w * s[i - 1, j, 1]
-                        b2 += w * s[i - 1, j, 2]
-                    if i < H - 1:
-                        w = Wv[i, j]
-                        b0 += w * s[i + 1, j, 0]
-                        b1 += w * s[i + 1, j, 1]
-                        b2 += w * s[i + 1, j, 2]
-                    if j > 0:
-                        w = Wh[i, j - 1]
-                        b0 += w * s[i, j - 1, 0]
-                        b1 += w * s[i, j - 1, 1]
-                        b2 += w * s[i, j - 1, 2]
-                    if j < W - 1:
-                        w = Wh[i, j]
-                        b0 += w * s[i, j + 1, 0]
-                        b1 += w * s[i, j + 1, 1]
-                        b2 += w * s[i, j + 1, 2]
-                    a = M[i, j, 0]
-                    b = M[i, j, 1]
-                    c = M[i, j, 2]
-                    d = M[i, j, 3]
-                    e = M[i, j, 4]
-                    f = M[i, j, 5]
-                    A = d * f - e * e
-                    B = c * e - b * f
-                    C = b * e - c * d
-                    D = a * f - c * c
-                    E = b * c - a * e
-                    F = a * d - b * b
-                    r = 1.0 / (a * A + b * B + c * C)
-                    s[i, j, 0] = (A * b0 + B * b1 + C * b2) * r
-                    s[i, j, 1] = (B * b0 + D * b1 + E * b2) * r
-                    s[i, j, 2] = (C * b0 + E * b1 + F * b2) * r
-
-
-@_jit
-def _apply(M, Wv, Wh, x, out):
-    """out = A x with A = blockdiag(M_p) - (W off-diagonal), M_p = N_p + deg_p I (6 entries)."""
-    H, W = Wh.shape[0], Wv.shape[1]
+    dot = 0.0
     for i in range(H):
         for j in range(W):
             x0, x1, x2 = x[i, j, 0], x[i, j, 1], x[i, j, 2]
@@ -158,32 +110,46 @@ def _apply(M, Wv, Wh, x, out):
             out[i, j, 0] = o0
             out[i, j, 1] = o1
             out[i, j, 2] = o2
+            dot += x0 * o0 + x1 * o1 + x2 * o2
+    return dot
 
 
 @_jit
-def _precondition(M, r, z):
-    """z = blockdiag(M_p)^-1 r (each 3x3 block by its adjugate); returns r . z."""
-    H, W = r.shape[0], r.shape[1]
-    rz = 0.0
+def _block_inverses(M):
+    """The 6 entries of each symmetric 3x3 block's inverse (adjugate / determinant)."""
+    H, W = M.shape[0], M.shape[1]
+    Minv = np.empty_like(M)
     for i in range(H):
         for j in range(W):
-            a = M[i, j, 0]
-            b = M[i, j, 1]
-            c = M[i, j, 2]
-            d = M[i, j, 3]
-            e = M[i, j, 4]
-            f = M[i, j, 5]
+            a, b, c = M[i, j, 0], M[i, j, 1], M[i, j, 2]
+            d, e, f = M[i, j, 3], M[i, j, 4], M[i, j, 5]
             A = d * f - e * e
             B = c * e - b * f
             C = b * e - c * d
-            D = a * f - c * c
-            E = b * c - a * e
-            F = a * d - b * b
             q = 1.0 / (a * A + b * B + c * C)
+            Minv[i, j, 0] = A * q
+            Minv[i, j, 1] = B * q
+            Minv[i, j, 2] = C * q
+            Minv[i, j, 3] = (a * f - c * c) * q
+            Minv[i, j, 4] = (b * c - a * e) * q
+            Minv[i, j, 5] = (a * d - b * b) * q
+    return Minv
+
+
+@_jit
+def _update(s, r, p, q, z, Minv, alpha):
+    """s += alpha p, r -= alpha q, z = Minv r; returns r . z."""
+    H, W = s.shape[0], s.shape[1]
+    rz = 0.0
+    for i in range(H):
+        for j in range(W):
+            for k in range(3):
+                s[i, j, k] += alpha * p[i, j, k]
+                r[i, j, k] -= alpha * q[i, j, k]
             r0, r1, r2 = r[i, j, 0], r[i, j, 1], r[i, j, 2]
-            z0 = (A * r0 + B * r1 + C * r2) * q
-            z1 = (B * r0 + D * r1 + E * r2) * q
-            z2 = (C * r0 + E * r1 + F * r2) * q
+            z0 = Minv[i, j, 0] * r0 + Minv[i, j, 1] * r1 + Minv[i, j, 2] * r2
+            z1 = Minv[i, j, 1] * r0 + Minv[i, j, 3] * r1 + Minv[i, j, 4] * r2
+            z2 = Minv[i, j, 2] * r0 + Minv[i, j, 4] * r1 + Minv[i, j, 5] * r2
             z[i, j, 0] = z0
             z[i, j, 1] = z1
             z[i, j, 2] = z2
@@ -194,25 +160,30 @@ def _precondition(M, r, z):
 @_jit
 def pcg(M, rhs, Wv, Wh, s, n_iter):
     """``n_iter`` block-Jacobi preconditioned CG iterations on A s = rhs from ``s`` (updated in place)."""
+    Minv = _block_inverses(M)
     r = np.empty_like(s)
-    _apply(M, Wv, Wh, s, r)
-    r[:] = rhs - r
-    z = np.empty_like(s)
-    rz = _precondition(M, r, z)
-    p = z.copy()
-    q = np.empty_like(s)
+    _apply_dot(M, Wv, Wh, s, r)
+    for i in range(s.shape[0]):
+        for j in range(s.shape[1]):
+            for k in range(3):
+                r[i, j, k] = rhs[i, j, k] - r[i, j, k]
+    z = np.zeros_like(s)
+    p = np.zeros_like(s)
+    q = np.zeros_like(s)
+    rz = _update(s, r, p, q, z, Minv, 0.0)  # z = Minv r
+    p[:] = z
     for _ in range(n_iter):
         if rz <= 0.0:
             break
-        _apply(M, Wv, Wh, p, q)
-        pq = np.sum(p * q)
+        pq = _apply_dot(M, Wv, Wh, p, q)
         if pq <= 0.0:
             break
         alpha = rz / pq
-        s += alpha * p
-        r -= alpha * q
-        rz_new = _precondition(M, r, z)
+        rz_new = _update(s, r, p, q, z, Minv, alpha)
         beta = rz_new / rz
         rz = rz_new
-        p[:] = z + beta * p
+        for i in range(s.shape[0]):
+            for j in range(s.shape[1]):
+                for k in range(3):
+                    p[i, j, k] = z[i, j, k] + beta * p[i, j, k]
     return s
