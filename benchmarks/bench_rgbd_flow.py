@@ -363,7 +363,8 @@ def main() -> int:
                 wall[m].append(w)
         speed[size] = {m: (min(cpu[m]), min(wall[m])) for m in cpu}
     lines += ["### Speed (one mixed-scene pair, best of 3, single thread)", "",
-              "| size | flowtrack rgbd CPU s | wall s | skimage TV-L1 + lifting CPU s | wall s | ratio (CPU) |",
+              "| size | flowtrack rgbd CPU s | wall s | skimage TV-L1 + lifting CPU s | wall s "
+              "| ratio (CPU) |",
               "|---|---:|---:|---:|---:|---:|"]
     for (h, w), s in speed.items():
         lines.append(f"| {w}×{h} | {s[OURS][0]:.3f} | {s[OURS][1]:.3f} | {s[TVL1][0]:.3f} | {s[TVL1][1]:.3f} "
@@ -380,14 +381,16 @@ def main() -> int:
         "Bars (issue 14; EPE3D in mm per frame, time = CPU time, the fair measure on this shared machine):",
         f"- synthetic moving mean EPE3D {ours_mv:.2f} ≤ 0.5 × better OpenCV peer ({peer}, "
         f"{syn[peer]['moving'][0]:.2f}): {_verdict(ours_mv <= 0.5 * syn[peer]['moving'][0])}",
-        f"- synthetic moving mean EPE3D {ours_mv:.2f} ≤ 0.5 × nearest neighbour ({syn[NN]['moving'][0]:.2f}): "
+        f"- synthetic moving mean EPE3D {ours_mv:.2f} ≤ 0.5 × nearest neighbour "
+        f"({syn[NN]['moving'][0]:.2f}): "
         f"{_verdict(ours_mv <= 0.5 * syn[NN]['moving'][0])}",
         f"- static mean EPE3D {syn[OURS]['static'][0]:.2f} ≤ 2 mm: {_verdict(syn[OURS]['static'][0] <= 2.0)}",
         f"- interior mean EPE3D {syn[OURS]['interior'][0]:.2f} no worse than {peer} "
         f"({syn[peer]['interior'][0]:.2f}): {_verdict(syn[OURS]['interior'][0] <= syn[peer]['interior'][0])}",
         f"- Motorcycle mean EPE3D {mcs[OURS]['all'][0]:.2f} < TV-L1 + lifting ({mcs[TVL1]['all'][0]:.2f}): "
         f"{_verdict(mcs[OURS]['all'][0] < mcs[TVL1]['all'][0])}",
-        f"- Motorcycle mean EPE3D {mcs[OURS]['all'][0]:.2f} ≤ DIS medium + lifting ({mcs[DIS]['all'][0]:.2f}): "
+        f"- Motorcycle mean EPE3D {mcs[OURS]['all'][0]:.2f} ≤ DIS medium + lifting "
+        f"({mcs[DIS]['all'][0]:.2f}): "
         f"{_verdict(mcs[OURS]['all'][0] <= mcs[DIS]['all'][0])}",
         f"- 320×240: {s1[OURS][0]:.3f} s ≤ 0.5 s: {_verdict(s1[OURS][0] <= 0.5)}; "
         f"640×480: {s2[OURS][0]:.3f} s ≤ 2.0 s: {_verdict(s2[OURS][0] <= 2.0)}; "

@@ -78,7 +78,7 @@ def assemble(a_i, a_d, c_i, c_d, r_i, r_d, s0, Wv, Wh, M, rhs):
 
 @_jit
 def _apply_dot(M, Wv, Wh, x, out):
-    """out = A x with A = blockdiag(M_p) - (W off-diagonal), M_p = N_p + deg_p I (6 entries); returns x . out."""
+    """out = A x, A = blockdiag(M_p) - (W off-diagonal), M_p = N_p + deg_p I (6 entries); returns x . out."""
     H, W = Wh.shape[0], Wv.shape[1]
     dot = 0.0
     for i in range(H):

@@ -23,7 +23,8 @@ With :math:`I_0, I_1` the grey images and :math:`D_1` the depth map at :math:`t 
 
     E(s) = \sum_p m_p \Big[\rho_I\Big(\frac{I_1(\pi(X_p + s_p)) - I_0(p)}{\sigma_I}\Big)
            + \rho_D\Big(\frac{D_1(\pi(X_p + s_p)) - (Z_p + s_{p,z})}{\sigma_D}\Big)\Big]
-           + \lambda \sum_{(p,q)\in\mathcal E} w_{pq}\, \rho_S\Big(\frac{\lVert s_p - s_q\rVert}{\sigma_S}\Big),
+           + \lambda \sum_{(p,q)\in\mathcal E} w_{pq}\,
+             \rho_S\Big(\frac{\lVert s_p - s_q\rVert}{\sigma_S}\Big),
 
 - the photometric term is brightness constancy :math:`I_1(x + u) = I_0(x)`;
 - the geometric term is depth constancy in its corrected form :math:`D_1(x + u) = D_0(x) + v_Z\,\Delta t`
@@ -221,12 +222,12 @@ def pixel_normal_equations(X, grad_i, r_i, grad_d, r_d, cam: PinholeCamera, w_i=
     >>> from flowtrack.camera import PinholeCamera
     >>> cam = PinholeCamera(100.0, 100.0, 0.0, 0.0)
     >>> N, b = pixel_normal_equations([0.0, 0.0, 1.0], [1.0, 0.0], 0.5, [0.0, 0.0], 0.0, cam)
-    >>> N
-    array([[10000.,     0.,     0.],
-           [    0.,     0.,     0.],
-           [    0.,     0.,     1.]])
-    >>> b
-    array([-50.,  -0.,  -0.])
+    >>> N + 0.0   # x from the photometric term (100 px per metre, squared), z from the geometric one
+    array([[1.e+04, 0.e+00, 0.e+00],
+           [0.e+00, 0.e+00, 0.e+00],
+           [0.e+00, 0.e+00, 1.e+00]])
+    >>> b + 0.0
+    array([-50.,   0.,   0.])
     """
     cam = _check_cam(cam)
     X = np.asarray(X, dtype=np.float64)
@@ -475,10 +476,12 @@ def _check_image(img, name):
     arr = np.asarray(img)
     if arr.dtype == np.uint8:
         if arr.ndim != 3 or arr.shape[2] != 3:
-            raise ValueError(f"{name} must be uint8 (H, W, 3) RGB or float grey (H, W), got uint8 {arr.shape}")
+            raise ValueError(f"{name} must be uint8 (H, W, 3) RGB or float grey (H, W), "
+                             f"got uint8 {arr.shape}")
     elif np.issubdtype(arr.dtype, np.floating):
         if arr.ndim != 2:
-            raise ValueError(f"{name} must be float grey (H, W) or uint8 (H, W, 3) RGB, got float {arr.shape}")
+            raise ValueError(f"{name} must be float grey (H, W) or uint8 (H, W, 3) RGB, "
+                             f"got float {arr.shape}")
         if not np.isfinite(arr).all():
             raise ValueError(f"{name} contains NaN or inf")
     else:
@@ -507,7 +510,8 @@ def _check_depth(depth, name, shape):
 def _options(options):
     unknown = set(options) - set(_DEFAULTS)
     if unknown:
-        raise TypeError(f"rgbd_scene_flow got unknown option(s) {sorted(unknown)}; known: {sorted(_DEFAULTS)}")
+        raise TypeError(f"rgbd_scene_flow got unknown option(s) {sorted(unknown)}; "
+                        f"known: {sorted(_DEFAULTS)}")
     o = {**_DEFAULTS, **options}
     o["lam"] = nonnegative(o["lam"], "lam")
     for k in ("sigma_i", "sigma_d", "sigma_s", "edge_scale", "occlusion"):
@@ -570,7 +574,8 @@ def _edge_weights(X, valid, intr, sigma_d, edge_scale):
     """w_pq = 1 / (1 + |X_p - X_q|^2 / d_pq^2); a small constant where an end has no depth."""
     f = 0.5 * (intr[0] + intr[1])
     out = []
-    for a, b, va, vb in ((X[1:], X[:-1], valid[1:], valid[:-1]), (X[:, 1:], X[:, :-1], valid[:, 1:], valid[:, :-1])):
+    pairs = ((X[1:], X[:-1], valid[1:], valid[:-1]), (X[:, 1:], X[:, :-1], valid[:, 1:], valid[:, :-1]))
+    for a, b, va, vb in pairs:
         d2 = np.sum((a - b) ** 2, axis=-1)
         zbar = 0.5 * (a[..., 2] + b[..., 2])
         ref = edge_scale * zbar / f + 2.0 * sigma_d
