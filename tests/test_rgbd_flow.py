@@ -74,6 +74,15 @@ def test_both_backends_agree():
     np.testing.assert_allclose(v1[ok], v2[ok], rtol=0, atol=1e-7)
 
 
+def test_without_numba_auto_falls_back_to_numpy(monkeypatch):
+    args = _plane_pair(np.array([0.01, 0.0, 0.0]))
+    ref = rgbd_scene_flow(*args, CAM, 0.1, backend="numpy")
+    monkeypatch.setattr(R, "_KERNELS", [None])  # as if numba could not be imported
+    np.testing.assert_array_equal(rgbd_scene_flow(*args, CAM, 0.1), ref)
+    with pytest.raises(ValueError, match="numba"):
+        rgbd_scene_flow(*args, CAM, 0.1, backend="numba")
+
+
 # --------------------------------------------------------------------------------------------------
 # the per-pixel data term: rank 2, aperture null space
 # --------------------------------------------------------------------------------------------------
