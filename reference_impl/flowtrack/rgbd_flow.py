@@ -540,7 +540,7 @@ def _options(options):
 # --------------------------------------------------------------------------------------------------
 # the estimator
 # --------------------------------------------------------------------------------------------------
-def _pyramid(I0, D0, I1, D1, cam, levels, min_size, blur):
+def _pyramid(I0, D0, I1, D1, cam, levels):
     pyr = []
     fx, fy, cx, cy = cam.fx, cam.fy, cam.cx, cam.cy
     for lev in range(levels):
@@ -674,15 +674,15 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
         discontinuities.
         ``edge_scale`` (3.0): :math:`\kappa` of the edge weights :math:`w_{pq}`, in pixel footprints.
         ``occlusion`` (0.02 m): a warped depth this much in front of the moved point marks it occluded.
-        ``penalty`` (``"charbonnier"``): or ``"quadratic"`` (every term squared; one IRLS step
-        then solves the linearised problem).
+        ``penalty`` (``"charbonnier"``): or ``"quadratic"`` (every term squared: the weights are
+        constant and each warp minimises its linearised energy, up to the CG iterations).
         ``levels`` (None: as many as fit): pyramid levels; ``min_size`` (6): smallest side of the
         coarsest level (large motions need deep pyramids). ``warps`` (3), ``irls`` (2),
         ``cg_iterations`` (15): per level, warps; per warp, reweightings; per reweighting, CG
         iterations. ``blur`` (0.8 px): Gaussian pre-smoothing
         of the images. ``use_color``, ``use_depth`` (True): switch a data term off (ablation).
         ``backend`` (``"auto"``): ``"numba"`` (compiled loops, :mod:`flowtrack._rgbd_kernels`),
-        ``"numpy"`` (vectorised, about 10x slower) or ``"auto"`` (numba when importable).
+        ``"numpy"`` (vectorised, about 5x slower) or ``"auto"`` (numba when importable).
         ``return_info`` (False): also return a dict with ``levels`` and the finest level's
         linearised problem (``problem``, for tests and teaching).
 
@@ -717,7 +717,7 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
         I1 = ndimage.gaussian_filter(I1, o["blur"], mode="nearest")
     H, W = shape
     n = _n_levels(H, W, o["min_size"], o["levels"])
-    pyr = _pyramid(I0, D0, I1, D1, cam, n, o["min_size"], o["blur"])
+    pyr = _pyramid(I0, D0, I1, D1, cam, n)
     s = None
     prob = None
     for lev in range(n - 1, -1, -1):
