@@ -2,7 +2,9 @@
 
 Methods, each given the same two RGB-D frames:
 
-- ``flowtrack rgbd``: :func:`flowtrack.sceneflow.rgbd_scene_flow` with its default options;
+- ``flowtrack rgbd``: :func:`flowtrack.sceneflow.rgbd_scene_flow` with its default options; and two
+  ablations, the geometric (range-flow) term only (``use_color=False``) and the photometric term only
+  (``use_depth=False``);
 - ``OpenCV DIS medium + lifting`` and ``OpenCV Farnebäck + lifting``: OpenCV's dense optical flow on
   the grey images, lifted to 3-D with the two depth maps by
   :func:`flowtrack.camera.scene_flow_from_optical_flow`;
@@ -67,7 +69,9 @@ DIS = "OpenCV DIS medium + lifting"
 FARNEBACK = "OpenCV Farnebäck + lifting"
 TVL1 = "skimage TV-L1 + lifting"
 NN = "nearest neighbour"
-METHODS = (OURS, DIS, FARNEBACK, TVL1, NN)
+GEOM_ONLY = "flowtrack rgbd, geometric term only"
+PHOTO_ONLY = "flowtrack rgbd, photometric term only"
+METHODS = (OURS, GEOM_ONLY, PHOTO_ONLY, DIS, FARNEBACK, TVL1, NN)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -91,6 +95,14 @@ def _induced_flow(depth_t, v, cam, dt):
 def ours(rgb0, d0, rgb1, d1, cam, dt):
     v = rgbd_scene_flow(rgb0, d0, rgb1, d1, cam, dt)
     return v, _induced_flow(d0, v, cam, dt)
+
+
+def _ablation(**kw):
+    def run(rgb0, d0, rgb1, d1, cam, dt):
+        v = rgbd_scene_flow(rgb0, d0, rgb1, d1, cam, dt, **kw)
+        return v, _induced_flow(d0, v, cam, dt)
+
+    return run
 
 
 def _lift(flow, d0, d1, cam, dt):
@@ -127,7 +139,8 @@ def nearest(rgb0, d0, rgb1, d1, cam, dt):
     return v, flow
 
 
-RUNNERS = {OURS: ours, DIS: dis, FARNEBACK: farneback, TVL1: tvl1, NN: nearest}
+RUNNERS = {OURS: ours, GEOM_ONLY: _ablation(use_color=False), PHOTO_ONLY: _ablation(use_depth=False),
+           DIS: dis, FARNEBACK: farneback, TVL1: tvl1, NN: nearest}
 
 
 # --------------------------------------------------------------------------------------------------
