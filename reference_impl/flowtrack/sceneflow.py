@@ -44,6 +44,7 @@ from scipy.spatial import cKDTree
 
 from ._graph import apply_transform, as_labels, block_pcg, knn_edges, laplacian
 from ._validation import as_array, nonnegative, positive, positive_int
+from .rgbd_flow import rgbd_scene_flow
 from .variational import variational_scene_flow
 
 try:  # optional: CHOLMOD (scikit-sparse <= 0.4.x builds against SuiteSparse 5; 0.5 needs SuiteSparse 7)
@@ -53,6 +54,7 @@ except Exception:  # pragma: no cover - depends on the environment
 
 __all__ = [
     "variational_scene_flow",
+    "rgbd_scene_flow",
     "knn_graph",
     "graph_laplacian",
     "check_affinity",

@@ -1,0 +1,771 @@
+r"""Dense scene flow from two RGB-D frames: a variational estimator in the spirit of PD-Flow.
+
+:func:`rgbd_scene_flow` estimates the 3-D velocity of every pixel of frame :math:`t` from the colour
+(grey) images *and* the depth maps of two frames, with no correspondences given: the syllabus'
+brightness constancy and depth constancy (section 2), tied to the 3-D motion by the projection
+Jacobian, plus a smoothness term (section 3). The design follows PD-Flow (Jaimez, Souiai,
+González-Jiménez and Cremers, ICRA 2015): photometric and geometric data terms, robust penalties,
+smoothing weighted down across depth edges, coarse-to-fine with warping.
+
+The unknown
+-----------
+Per pixel :math:`p` of frame :math:`t` with valid depth :math:`Z_p` the point is
+:math:`X_p = Z_p\,((x_p - c_x)/f_x,\ (y_p - c_y)/f_y,\ 1)^\top` and the unknown is its displacement
+over the frame interval, :math:`s_p = v_p\,\Delta t` (metres; the returned velocity is
+:math:`v = s/\Delta t`). At :math:`t + \Delta t` the point is :math:`X_p + s_p` and its image is
+:math:`\pi(X_p + s_p) = x_p + u_p`, so the optical flow is :math:`u_p = \pi(X_p + s_p) - \pi(X_p)`.
+
+The energy
+----------
+With :math:`I_0, I_1` the grey images and :math:`D_1` the depth map at :math:`t + \Delta t`,
+
+.. math::
+
+    E(s) = \sum_p m_p \Big[\rho_I\Big(\frac{I_1(\pi(X_p + s_p)) - I_0(p)}{\sigma_I}\Big)
+           + \rho_D\Big(\frac{D_1(\pi(X_p + s_p)) - (Z_p + s_{p,z})}{\sigma_D}\Big)\Big]
+           + \lambda \sum_{(p,q)\in\mathcal E} w_{pq}\,
+             \rho_S\Big(\frac{\lVert s_p - s_q\rVert}{\sigma_S}\Big),
+
+- the photometric term is brightness constancy :math:`I_1(x + u) = I_0(x)`;
+- the geometric term is depth constancy in its corrected form :math:`D_1(x + u) = D_0(x) + v_Z\,\Delta t`
+  (range flow: the depth seen at the new image position is the old depth plus the motion along the
+  optical axis);
+- :math:`\mathcal E` are the 4-neighbour edges, and :math:`w_{pq} = 1 / (1 + \lVert X_p - X_q\rVert^2 /
+  d_{pq}^2)` weighs smoothing down across depth edges (an inverse 3-D neighbour distance, PD-Flow's
+  choice in a smooth form), :math:`d_{pq} = \kappa\,\bar Z_{pq} / f + 2\sigma_D` the distance expected
+  between neighbours on one surface (``edge_scale`` :math:`= \kappa`);
+- :math:`\rho(x) = 2(\sqrt{1 + x^2} - 1)` (Charbonnier: :math:`\approx x^2` for small :math:`x`,
+  :math:`\approx 2|x|`, i.e. L1 / TV, for large) or :math:`\rho(x) = x^2` (``penalty="quadratic"``);
+- :math:`m_p \in \{0, 1\}` switches the data terms off where they cannot hold: depth at :math:`t`
+  invalid (the pixel then has no point and is filled by smoothing only, its output is NaN), the warped
+  position outside the image, and, for the geometric term, no valid depth under
+  :math:`\pi(X_p + s_p)` at :math:`t + \Delta t` or a depth edge there. A pixel whose warped depth is
+  clearly *in front* of the moved point (:math:`D_1 < Z + s_z - \tau`, the point is hidden at
+  :math:`t + \Delta t`) is occluded: both data terms are off there.
+
+Linearisation
+-------------
+Around the current estimate :math:`s^0` (the warp), with :math:`X' = X + s^0`,
+:math:`J = \partial\pi/\partial X\,(X')` (:func:`flowtrack.camera.projection_jacobian`; at
+:math:`s^0 = 0` this is the syllabus' :math:`u = J(X)\,v\,\Delta t`) and the images and their
+gradients sampled at :math:`\pi(X')`:
+
+.. math::
+
+    I_1(\pi(X + s)) - I_0 &\approx r_I + a_I^\top (s - s^0), \qquad a_I = J^\top \nabla I, \\
+    D_1(\pi(X + s)) - Z - s_z &\approx r_D + a_D^\top (s - s^0), \qquad a_D = J^\top \nabla D_1 - e_z,
+
+with :math:`r_I, r_D` the residuals at :math:`s^0` and :math:`\nabla I` the mean of the gradients of
+:math:`I_0` and of the warped :math:`I_1`. Each pixel's data term is then quadratic in :math:`s_p`
+with the 3×3 normal matrix :math:`N_p = c_I a_I a_I^\top + c_D a_D a_D^\top`
+(:func:`pixel_normal_equations`): rank at most 2, two equations for three unknowns, its null space
+the 3-D aperture direction :math:`a_I \times a_D`; only the smoothness term fixes that component.
+
+Discretisation and solver
+-------------------------
+The robust penalties are handled by iteratively reweighted least squares (the lagged-nonlinearity
+scheme of Brox et al., 2004): with the weights
+:math:`c = \rho'(x)/(2x\sigma^2) = 1/(\sigma^2\sqrt{1 + x^2})` of the current iterate, a quadratic
+majoriser of :math:`E` is minimised, which is the sparse symmetric positive definite system
+
+.. math::  (N_p + \lambda \textstyle\sum_q W_{pq})\, s_p - \lambda \sum_q W_{pq}\, s_q
+           = N_p s^0_p - g_p \quad \text{for every pixel } p, \qquad
+           g_p = c_I r_I a_I + c_D r_D a_D,
+
+:math:`W_{pq} = w_{pq} c_{S,pq}` — an edge-weighted grid Laplacian
+(:func:`flowtrack.variational.grid_laplacian`) coupling 3×3 blocks. It is solved by conjugate
+gradients preconditioned with the 3×3 block diagonal (each block inverted in closed form), warm-started
+from the current iterate, ``cg_iterations`` iterations per reweighting. (Red-black Gauss–Seidel, the
+solver of :func:`flowtrack.variational.red_black_sweep`, was tried first: the smoothness makes the
+system stiff, :math:`\lambda/\sigma_S^2 \gg c_I |a_I|^2`, and Gauss–Seidel needs
+:math:`O(\kappa)` sweeps for the smooth, near-constant error modes — a uniform translation hardly
+moved at the coarse levels — where CG needs :math:`O(\sqrt\kappa)`.)
+
+Coarse-to-fine: the images are blurred and halved (depth: the mean of the valid pixels of each 2×2
+block) until the short side would drop below ``min_size``; at level :math:`\ell` the camera is
+:math:`f/2^\ell,\ (c + 1/2)/2^\ell - 1/2`. The displacement is in metres, so it is carried from level
+to level by bilinear interpolation without rescaling. Each level runs ``warps`` warps (images and
+depth resampled at :math:`\pi(X + s^0)` — the exact projection, not the linearised one — then
+``irls`` reweightings of ``cg_iterations`` CG iterations each). The inner loops are compiled with
+numba (:mod:`flowtrack._rgbd_kernels`); ``backend="numpy"`` runs the same iterations vectorised.
+
+Invalid depth
+-------------
+0, NaN and inf depths are invalid. An invalid pixel of frame :math:`t` has no data term, and its
+edges are weighted by a small constant (``0.05``), so it is filled in by its neighbours but hardly
+couples them; its output is NaN. Nothing is ever computed from a NaN: invalid depths are replaced
+by 0 and masked before any arithmetic, so the output at valid pixels is finite.
+
+Examples
+--------
+A fronto-parallel textured plane 1 m away moving sideways by 5 mm per frame:
+
+>>> import numpy as np
+>>> from flowtrack.camera import PinholeCamera
+>>> cam = PinholeCamera(200.0, 200.0, 39.5, 29.5)
+>>> yy, xx = np.mgrid[0:60, 0:80]
+>>> tex = lambda x: 0.5 + 0.2 * np.sin(x[0] / 3.0) * np.cos(x[1] / 4.0)
+>>> I0 = tex(((xx - 39.5) / 200.0 * 200, yy))
+>>> I1 = tex(((xx - 39.5) / 200.0 * 200 - 1.0, yy))   # 5 mm at 1 m = 1 px to the right
+>>> D = np.ones((60, 80))
+>>> v = rgbd_scene_flow(I0, D, I1, D, cam, dt=0.1)
+>>> np.round(np.median(v[10:-10, 10:-10].reshape(-1, 3), axis=0), 3) + 0.0
+array([0.05, 0.  , 0.  ])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from ._validation import nonnegative, positive, positive_int
+from .camera import PinholeCamera, _check_cam
+
+__all__ = [
+    "BACKENDS",
+    "PENALTIES",
+    "pixel_normal_equations",
+    "rgbd_point_flow",
+    "rgbd_scene_flow",
+]
+
+PENALTIES = ("charbonnier", "quadratic")
+
+#: weight of the smoothness edges that touch a pixel without depth at t
+_HOLE_EDGE_WEIGHT = 0.05
+
+_DEFAULTS = {
+    "lam": 0.05,
+    "sigma_i": 0.02,
+    "sigma_d": 0.004,
+    "sigma_s": 0.001,
+    "edge_scale": 3.0,
+    "occlusion": 0.02,
+    "penalty": "charbonnier",
+    "levels": None,
+    "min_size": 6,
+    "warps": 3,
+    "irls": 2,
+    "cg_iterations": 15,
+    "blur": 0.8,
+    "use_depth": True,
+    "use_color": True,
+    "backend": "auto",
+    "return_info": False,
+}
+
+BACKENDS = ("auto", "numba", "numpy")
+_KERNELS: list = []
+
+
+def _kernels():
+    """The numba kernels (:mod:`flowtrack._rgbd_kernels`), or None without numba; imported once."""
+    if not _KERNELS:
+        try:
+            from . import _rgbd_kernels
+        except ImportError:  # pragma: no cover - numba is a dependency; this is the documented fallback
+            _rgbd_kernels = None
+        _KERNELS.append(_rgbd_kernels)
+    return _KERNELS[0]
+
+
+# --------------------------------------------------------------------------------------------------
+# per-pixel data term
+# --------------------------------------------------------------------------------------------------
+def _jt(X, gx, gy, fx, fy):
+    r"""``J(X)^T (gx, gy)`` for the projection Jacobian at points ``X`` (..., 3); returns (..., 3)."""
+    iz = 1.0 / X[..., 2]
+    a = np.empty(X.shape)
+    a[..., 0] = fx * gx * iz
+    a[..., 1] = fy * gy * iz
+    a[..., 2] = -(fx * gx * X[..., 0] + fy * gy * X[..., 1]) * iz * iz
+    return a
+
+
+def pixel_normal_equations(X, grad_i, r_i, grad_d, r_d, cam: PinholeCamera, w_i=1.0, w_d=1.0):
+    r"""The linearised data term of pixels: its 3×3 normal matrix and right-hand side.
+
+    For a point :math:`X` (camera frame at :math:`t`, already moved by the current estimate) the data
+    term linearised in the displacement increment :math:`\delta` is
+
+    .. math::  E_p(\delta) = w_I\,(r_I + a_I^\top\delta)^2 + w_D\,(r_D + a_D^\top\delta)^2, \qquad
+               a_I = J^\top \nabla I, \quad a_D = J^\top \nabla D - e_z,
+
+    with :math:`J = \partial\pi/\partial X` (:func:`flowtrack.camera.projection_jacobian`),
+    :math:`\nabla I, \nabla D` the image gradients (per pixel) and :math:`r_I, r_D` the photometric
+    and geometric residuals. :math:`\nabla E_p = 0` is :math:`N\delta = b` with
+
+    .. math::  N = w_I a_I a_I^\top + w_D a_D a_D^\top, \qquad b = -(w_I r_I a_I + w_D r_D a_D).
+
+    :math:`N` has rank at most 2: two equations, three unknowns. Its null space is spanned by
+    :math:`a_I \times a_D`, the motion neither term sees (the aperture problem in 3-D).
+
+    Parameters
+    ----------
+    X : array_like, shape (..., 3)
+        Points, Z > 0.
+    grad_i, grad_d : array_like, shape (..., 2)
+        :math:`(\partial_x I, \partial_y I)` (grey per pixel) and :math:`(\partial_x D, \partial_y D)`
+        (metres per pixel) at the warped positions.
+    r_i, r_d : array_like, shape (...)
+        Residuals :math:`I_1(\pi(X)) - I_0` and :math:`D_1(\pi(X)) - Z`.
+    cam : PinholeCamera
+    w_i, w_d : float or array_like, shape (...)
+        Weights (e.g. :math:`1/\sigma_I^2`, :math:`1/\sigma_D^2`), >= 0.
+
+    Returns
+    -------
+    N : ndarray, shape (..., 3, 3)
+    b : ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> from flowtrack.camera import PinholeCamera
+    >>> cam = PinholeCamera(100.0, 100.0, 0.0, 0.0)
+    >>> N, b = pixel_normal_equations([0.0, 0.0, 1.0], [1.0, 0.0], 0.5, [0.0, 0.0], 0.0, cam)
+    >>> N + 0.0   # x from the photometric term (100 px per metre, squared), z from the geometric one
+    array([[1.e+04, 0.e+00, 0.e+00],
+           [0.e+00, 0.e+00, 0.e+00],
+           [0.e+00, 0.e+00, 1.e+00]])
+    >>> b + 0.0
+    array([-50.,   0.,   0.])
+    """
+    cam = _check_cam(cam)
+    X = np.asarray(X, dtype=np.float64)
+    if X.ndim < 1 or X.shape[-1] != 3:
+        raise ValueError(f"X must have shape (..., 3), got {X.shape}")
+    if not np.isfinite(X).all() or (X[..., 2] <= 0).any():
+        raise ValueError("X must be finite with Z > 0")
+    batch = X.shape[:-1]
+    gi = np.asarray(grad_i, dtype=np.float64)
+    gd = np.asarray(grad_d, dtype=np.float64)
+    for name, g in (("grad_i", gi), ("grad_d", gd)):
+        if g.shape != (*batch, 2):
+            raise ValueError(f"{name} must have shape {(*batch, 2)}, got {g.shape}")
+    ri = np.broadcast_to(np.asarray(r_i, dtype=np.float64), batch)
+    rd = np.broadcast_to(np.asarray(r_d, dtype=np.float64), batch)
+    wi = np.broadcast_to(np.asarray(w_i, dtype=np.float64), batch)
+    wd = np.broadcast_to(np.asarray(w_d, dtype=np.float64), batch)
+    if (wi < 0).any() or (wd < 0).any():
+        raise ValueError("w_i and w_d must be >= 0")
+    a_i = _jt(X, gi[..., 0], gi[..., 1], cam.fx, cam.fy)
+    a_d = _jt(X, gd[..., 0], gd[..., 1], cam.fx, cam.fy)
+    a_d[..., 2] -= 1.0
+    N = wi[..., None, None] * a_i[..., :, None] * a_i[..., None, :]
+    N = N + wd[..., None, None] * a_d[..., :, None] * a_d[..., None, :]
+    b = -((wi * ri)[..., None] * a_i + (wd * rd)[..., None] * a_d)
+    return N, b
+
+
+# --------------------------------------------------------------------------------------------------
+# image helpers
+# --------------------------------------------------------------------------------------------------
+def _grey(img: np.ndarray) -> np.ndarray:
+    if img.ndim == 3:
+        return img.astype(np.float64) @ np.array([0.299, 0.587, 0.114]) / 255.0
+    return img.astype(np.float64)
+
+
+def _down(a: np.ndarray) -> np.ndarray:
+    """2×2 block sums of an (H, W, ...) array, padding odd sizes by repeating the last row/column."""
+    H, W = a.shape[:2]
+    if H % 2:
+        a = np.concatenate([a, a[-1:]], axis=0)
+    if W % 2:
+        a = np.concatenate([a, a[:, -1:]], axis=1)
+    return a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]
+
+
+def _down_depth(D: np.ndarray) -> np.ndarray:
+    """Mean of the valid (> 0) depths of each 2×2 block, 0 where none is valid."""
+    s = _down(D)
+    n = _down((D > 0).astype(np.float64))
+    return np.where(n > 0, s / np.maximum(n, 1.0), 0.0)
+
+
+def _grad(a: np.ndarray):
+    """Central differences along x (columns) and y (rows); one-sided at the border."""
+    gx = np.empty_like(a)
+    gy = np.empty_like(a)
+    gx[:, 1:-1] = 0.5 * (a[:, 2:] - a[:, :-2])
+    gx[:, 0] = a[:, 1] - a[:, 0]
+    gx[:, -1] = a[:, -1] - a[:, -2]
+    gy[1:-1] = 0.5 * (a[2:] - a[:-2])
+    gy[0] = a[1] - a[0]
+    gy[-1] = a[-1] - a[-2]
+    return gx, gy
+
+
+def _sample(stack: np.ndarray, x: np.ndarray, y: np.ndarray):
+    """Bilinear samples of ``stack (H, W, C)`` at float pixel positions; (values (..., C), inside)."""
+    H, W = stack.shape[:2]
+    inside = (x >= 0) & (y >= 0) & (x <= W - 1) & (y <= H - 1)
+    xc = np.clip(x, 0, W - 1)
+    yc = np.clip(y, 0, H - 1)
+    x0 = np.minimum(np.floor(xc).astype(np.intp), max(W - 2, 0))
+    y0 = np.minimum(np.floor(yc).astype(np.intp), max(H - 2, 0))
+    ax = (xc - x0)[..., None]
+    ay = (yc - y0)[..., None]
+    x1 = np.minimum(x0 + 1, W - 1)
+    y1 = np.minimum(y0 + 1, H - 1)
+    top = stack[y0, x0] * (1 - ax) + stack[y0, x1] * ax
+    bot = stack[y1, x0] * (1 - ax) + stack[y1, x1] * ax
+    return top * (1 - ay) + bot * ay, inside
+
+
+# --------------------------------------------------------------------------------------------------
+# the linearised problem of one warp and its solver
+# --------------------------------------------------------------------------------------------------
+def _rho(x2, penalty):
+    """Penalty of squared normalised residuals."""
+    if penalty == "quadratic":
+        return x2
+    return 2.0 * (np.sqrt(1.0 + x2) - 1.0)
+
+
+def _rho_weight(x2, penalty):
+    """d rho / d(x^2): the IRLS weight."""
+    if penalty == "quadratic":
+        return np.ones_like(x2)
+    return 1.0 / np.sqrt(1.0 + x2)
+
+
+class _Linearised:
+    """The energy of one warp with the data terms linearised around ``s0``.
+
+    ``a_i, a_d`` (H, W, 3), ``r_i, r_d`` (H, W) residuals at ``s0``, ``m_i, m_d`` (H, W) 0/1 data
+    masks, ``wv (H-1, W), wh (H, W-1)`` geometric edge weights, ``lam``, the scales and the penalty:
+
+    E(s) = sum m_i rho((r_i + a_i.(s - s0)) / sigma_i) + m_d rho((r_d + a_d.(s - s0)) / sigma_d)
+           + lam sum_edges w rho(|s_p - s_q| / sigma_s).
+    """
+
+    def __init__(self, s0, a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, lam, sigma_i, sigma_d, sigma_s, penalty):
+        self.s0, self.a_i, self.r_i, self.m_i = s0, a_i, r_i, m_i
+        self.a_d, self.r_d, self.m_d = a_d, r_d, m_d
+        self.wv, self.wh = wv, wh
+        self.lam, self.sigma_i, self.sigma_d, self.sigma_s = lam, sigma_i, sigma_d, sigma_s
+        self.penalty = penalty
+
+    def residuals(self, s):
+        ds = s - self.s0
+        return (self.r_i + np.sum(self.a_i * ds, axis=-1), self.r_d + np.sum(self.a_d * ds, axis=-1))
+
+    def energy(self, s) -> float:
+        ri, rd = self.residuals(s)
+        pen = self.penalty
+        data = np.sum(self.m_i * _rho((ri / self.sigma_i) ** 2, pen))
+        data += np.sum(self.m_d * _rho((rd / self.sigma_d) ** 2, pen))
+        gv = np.sum((s[1:] - s[:-1]) ** 2, axis=-1) / self.sigma_s**2
+        gh = np.sum((s[:, 1:] - s[:, :-1]) ** 2, axis=-1) / self.sigma_s**2
+        smooth = np.sum(self.wv * _rho(gv, pen)) + np.sum(self.wh * _rho(gh, pen))
+        return float(data + self.lam * smooth)
+
+    def weights(self, s):
+        """IRLS weights at ``s``: data (c_i, c_d) per pixel, smoothness (W_v, W_h) per edge."""
+        ri, rd = self.residuals(s)
+        pen = self.penalty
+        c_i = self.m_i * _rho_weight((ri / self.sigma_i) ** 2, pen) / self.sigma_i**2
+        c_d = self.m_d * _rho_weight((rd / self.sigma_d) ** 2, pen) / self.sigma_d**2
+        gv = np.sum((s[1:] - s[:-1]) ** 2, axis=-1) / self.sigma_s**2
+        gh = np.sum((s[:, 1:] - s[:, :-1]) ** 2, axis=-1) / self.sigma_s**2
+        Wv = self.lam * self.wv * _rho_weight(gv, pen) / self.sigma_s**2
+        Wh = self.lam * self.wh * _rho_weight(gh, pen) / self.sigma_s**2
+        return c_i, c_d, Wv, Wh
+
+    def system(self, s):
+        """The quadratic majoriser at ``s``: ``(N, rhs, Wv, Wh)`` with 0.5 grad = A s - rhs."""
+        c_i, c_d, Wv, Wh = self.weights(s)
+        a_i, a_d = self.a_i, self.a_d
+        N = c_i[..., None, None] * a_i[..., :, None] * a_i[..., None, :]
+        N += c_d[..., None, None] * a_d[..., :, None] * a_d[..., None, :]
+        # residual r + a.(s - s0) = a.s + (r - a.s0): rhs = N s0 - (c_i r_i a_i + c_d r_d a_d)
+        rhs = np.einsum("...ij,...j->...i", N, self.s0)
+        rhs -= (c_i * self.r_i)[..., None] * a_i + (c_d * self.r_d)[..., None] * a_d
+        return N, rhs, Wv, Wh
+
+    def gradient(self, s):
+        """Exact gradient of :meth:`energy` (the IRLS system at ``s`` touches E to first order)."""
+        N, rhs, Wv, Wh = self.system(s)
+        return 2.0 * (_apply(N, Wv, Wh, s) - rhs)
+
+
+def _neighbour_weighted(s, Wv, Wh):
+    """sum_q W_pq s_q for s (H, W, 3); Wv (H-1, W), Wh (H, W-1)."""
+    out = np.zeros_like(s)
+    t = Wv[..., None] * s[1:]
+    out[:-1] += t
+    t = Wv[..., None] * s[:-1]
+    out[1:] += t
+    t = Wh[..., None] * s[:, 1:]
+    out[:, :-1] += t
+    t = Wh[..., None] * s[:, :-1]
+    out[:, 1:] += t
+    return out
+
+
+def _degree(Wv, Wh, shape):
+    deg = np.zeros(shape)
+    deg[:-1] += Wv
+    deg[1:] += Wv
+    deg[:, :-1] += Wh
+    deg[:, 1:] += Wh
+    return deg
+
+
+def _apply(N, Wv, Wh, s):
+    """A s with A = blockdiag(N_p) + (L_W kron I_3)."""
+    deg = _degree(Wv, Wh, s.shape[:2])
+    return np.einsum("...ij,...j->...i", N, s) + deg[..., None] * s - _neighbour_weighted(s, Wv, Wh)
+
+
+def _inverse_sym3(M):
+    """Inverses of symmetric positive definite 3×3 blocks (..., 3, 3) by the adjugate."""
+    a, b, c = M[..., 0, 0], M[..., 0, 1], M[..., 0, 2]
+    d, e, f = M[..., 1, 1], M[..., 1, 2], M[..., 2, 2]
+    A = d * f - e * e
+    B = c * e - b * f
+    C = b * e - c * d
+    D = a * f - c * c
+    E = b * c - a * e
+    F = a * d - b * b
+    det = a * A + b * B + c * C
+    inv = np.empty_like(M)
+    r = 1.0 / det
+    inv[..., 0, 0] = A * r
+    inv[..., 0, 1] = inv[..., 1, 0] = B * r
+    inv[..., 0, 2] = inv[..., 2, 0] = C * r
+    inv[..., 1, 1] = D * r
+    inv[..., 1, 2] = inv[..., 2, 1] = E * r
+    inv[..., 2, 2] = F * r
+    return inv
+
+
+def _pcg(N, rhs, Wv, Wh, s, n_iter):
+    """``n_iter`` block-Jacobi preconditioned CG iterations on A s = rhs (numpy); ``s`` updated in place."""
+    deg = _degree(Wv, Wh, s.shape[:2])
+    M = N.copy()
+    for k in range(3):
+        M[..., k, k] += deg
+    Minv = _inverse_sym3(M)
+    precond = lambda r: np.einsum("...ij,...j->...i", Minv, r)  # noqa: E731
+    r = rhs - _apply(N, Wv, Wh, s)
+    z = precond(r)
+    p = z.copy()
+    rz = float(np.sum(r * z))
+    for _ in range(n_iter):
+        if rz <= 0.0:
+            break
+        q = _apply(N, Wv, Wh, p)
+        pq = float(np.sum(p * q))
+        if pq <= 0.0:
+            break
+        alpha = rz / pq
+        s += alpha * p
+        r -= alpha * q
+        z = precond(r)
+        rz_new = float(np.sum(r * z))
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return s
+
+
+# --------------------------------------------------------------------------------------------------
+# validation
+# --------------------------------------------------------------------------------------------------
+def _check_image(img, name):
+    arr = np.asarray(img)
+    if arr.dtype == np.uint8:
+        if arr.ndim != 3 or arr.shape[2] != 3:
+            raise ValueError(f"{name} must be uint8 (H, W, 3) RGB or float grey (H, W), "
+                             f"got uint8 {arr.shape}")
+    elif np.issubdtype(arr.dtype, np.floating):
+        if arr.ndim != 2:
+            raise ValueError(f"{name} must be float grey (H, W) or uint8 (H, W, 3) RGB, "
+                             f"got float {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise ValueError(f"{name} contains NaN or inf")
+    else:
+        raise ValueError(f"{name} must be uint8 (H, W, 3) RGB or float grey (H, W), got dtype {arr.dtype}")
+    if arr.shape[0] < 2 or arr.shape[1] < 2:
+        raise ValueError(f"{name} must be at least 2×2 pixels, got {arr.shape}")
+    return arr
+
+
+def _check_depth(depth, name, shape):
+    arr = np.asarray(depth)
+    if not np.issubdtype(arr.dtype, np.floating):
+        raise ValueError(f"{name} must be float depth in metres, shape {shape}, got dtype {arr.dtype}")
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape} (the image's), got {arr.shape}")
+    arr = arr.astype(np.float64)
+    valid = np.isfinite(arr) & (arr > 0)
+    with np.errstate(invalid="ignore"):
+        if (arr < 0).any():
+            raise ValueError(f"{name} must be >= 0 (0, NaN or inf mark invalid pixels)")
+    if not valid.any():
+        raise ValueError(f"{name} has no valid depth (every pixel is 0, NaN or inf)")
+    return np.where(valid, arr, 0.0)
+
+
+def _options(options):
+    unknown = set(options) - set(_DEFAULTS)
+    if unknown:
+        raise TypeError(f"rgbd_scene_flow got unknown option(s) {sorted(unknown)}; "
+                        f"known: {sorted(_DEFAULTS)}")
+    o = {**_DEFAULTS, **options}
+    o["lam"] = nonnegative(o["lam"], "lam")
+    for k in ("sigma_i", "sigma_d", "sigma_s", "edge_scale", "occlusion"):
+        o[k] = positive(o[k], k)
+    o["blur"] = nonnegative(o["blur"], "blur")
+    if o["penalty"] not in PENALTIES:
+        raise ValueError(f"penalty must be one of {PENALTIES}, got {o['penalty']!r}")
+    if o["levels"] is not None:
+        o["levels"] = positive_int(o["levels"], "levels")
+    o["min_size"] = positive_int(o["min_size"], "min_size", minimum=2)
+    for k in ("warps", "irls", "cg_iterations"):
+        o[k] = positive_int(o[k], k)
+    for k in ("use_depth", "use_color", "return_info"):
+        if not isinstance(o[k], (bool, np.bool_)):
+            raise TypeError(f"{k} must be a bool, got {type(o[k]).__name__}")
+    if o["backend"] not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {o['backend']!r}")
+    if o["backend"] == "numba" and _kernels() is None:
+        raise ValueError("backend='numba' needs numba, which is not importable")
+    if not (o["use_depth"] or o["use_color"]):
+        raise ValueError("use_depth and use_color cannot both be False (no data term)")
+    return o
+
+
+# --------------------------------------------------------------------------------------------------
+# the estimator
+# --------------------------------------------------------------------------------------------------
+def _pyramid(I0, D0, I1, D1, cam, levels):
+    pyr = []
+    fx, fy, cx, cy = cam.fx, cam.fy, cam.cx, cam.cy
+    for lev in range(levels):
+        if lev > 0:
+            I0 = _down(ndimage.gaussian_filter(I0, 1.0, mode="nearest")) / 4.0
+            I1 = _down(ndimage.gaussian_filter(I1, 1.0, mode="nearest")) / 4.0
+            D0, D1 = _down_depth(D0), _down_depth(D1)
+            fx, fy, cx, cy = fx / 2, fy / 2, (cx + 0.5) / 2 - 0.5, (cy + 0.5) / 2 - 0.5
+        pyr.append((I0, D0, I1, D1, (fx, fy, cx, cy)))
+    return pyr
+
+
+def _n_levels(H, W, min_size, levels):
+    n = 1
+    while min(H, W) / 2**n >= min_size:
+        n += 1
+    return n if levels is None else min(levels, n)
+
+
+def _upsample(s, shape):
+    """Bilinear resampling of a level's displacement (h, w, 3) onto the next finer grid (H, W)."""
+    H, W = shape
+    h, w = s.shape[:2]
+    y = np.clip((np.arange(H) - 0.5) / 2.0, 0, h - 1)
+    x = np.clip((np.arange(W) - 0.5) / 2.0, 0, w - 1)
+    yy, xx = np.meshgrid(y, x, indexing="ij")
+    out, _ = _sample(s, xx, yy)
+    return out
+
+
+def _edge_weights(X, valid, intr, sigma_d, edge_scale):
+    """w_pq = 1 / (1 + |X_p - X_q|^2 / d_pq^2); a small constant where an end has no depth."""
+    f = 0.5 * (intr[0] + intr[1])
+    out = []
+    pairs = ((X[1:], X[:-1], valid[1:], valid[:-1]), (X[:, 1:], X[:, :-1], valid[:, 1:], valid[:, :-1]))
+    for a, b, va, vb in pairs:
+        d2 = np.sum((a - b) ** 2, axis=-1)
+        zbar = 0.5 * (a[..., 2] + b[..., 2])
+        ref = edge_scale * zbar / f + 2.0 * sigma_d
+        w = 1.0 / (1.0 + d2 / ref**2)
+        out.append(np.where(va & vb, w, _HOLE_EDGE_WEIGHT))
+    return out
+
+
+def _level(I0, D0, I1, D1, intr, s, o):
+    H, W = I0.shape
+    K = None if o["backend"] == "numpy" else _kernels()
+    fx, fy, cx, cy = intr
+    valid0 = D0 > 0
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+    Z = np.where(valid0, D0, 1.0)  # placeholder depth 1 at invalid pixels (never used: no data there)
+    X = np.stack([(xx - cx) / fx * Z, (yy - cy) / fy * Z, Z], axis=-1)
+    wv, wh = _edge_weights(X, valid0, intr, o["sigma_d"], o["edge_scale"])
+    I0x, I0y = _grad(I0)
+    I1x, I1y = _grad(I1)
+    valid1 = D1 > 0
+    # the depth gradient is trusted where the 3×3 neighbourhood has depth and no edge
+    ok1 = ndimage.minimum_filter(valid1.astype(np.uint8), size=3, mode="nearest").astype(bool)
+    D1x, D1y = _grad(D1)
+    edge = np.maximum(np.abs(D1x), np.abs(D1y)) > (o["edge_scale"] * D1 / (0.5 * (fx + fy)) * 2.0
+                                                    + 3.0 * o["sigma_d"])
+    ok1 &= ~ndimage.maximum_filter(edge, size=3, mode="nearest")
+    stack = np.stack([I1, I1x, I1y, D1, D1x, D1y, ok1.astype(np.float64)], axis=-1)
+    use_i = 1.0 if o["use_color"] else 0.0
+    use_d = 1.0 if o["use_depth"] else 0.0
+    for _ in range(o["warps"]):
+        Xw = X + s
+        Zw = np.maximum(Xw[..., 2], 1e-3 * Z)
+        xw = fx * Xw[..., 0] / Zw + cx
+        yw = fy * Xw[..., 1] / Zw + cy
+        if K is None:
+            smp, inside = _sample(stack, xw, yw)
+        else:
+            smp = np.empty((H, W, stack.shape[2]))
+            inside = np.empty((H, W), dtype=np.bool_)
+            K.sample(stack, xw, yw, smp, inside)
+        inside &= valid0 & (Xw[..., 2] > 1e-3 * Z)
+        Iw, Ixw, Iyw, Dw, Dxw, Dyw, okw = np.moveaxis(smp, -1, 0)
+        ok_d = inside & (okw > 0.999)
+        # occluded at t+1: something clearly in front of the moved point
+        occluded = ok_d & (Dw < Zw - o["occlusion"])
+        m_i = (inside & ~occluded) * use_i
+        m_d = (ok_d & ~occluded) * use_d
+        gx = 0.5 * (Ixw + I0x)
+        gy = 0.5 * (Iyw + I0y)
+        Xj = np.concatenate([Xw[..., :2], Zw[..., None]], axis=-1)
+        a_i = _jt(Xj, gx, gy, fx, fy)
+        a_d = _jt(Xj, np.where(ok_d, Dxw, 0.0), np.where(ok_d, Dyw, 0.0), fx, fy)
+        a_d[..., 2] -= 1.0
+        r_i = np.where(inside, Iw - I0, 0.0)
+        r_d = np.where(ok_d, Dw - Zw, 0.0)
+        prob = _Linearised(s.copy(), a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, o["lam"],
+                           o["sigma_i"], o["sigma_d"], o["sigma_s"], o["penalty"])
+        for _ in range(o["irls"]):
+            if K is None:
+                N, rhs, Wv, Wh = prob.system(s)
+                _pcg(N, rhs, Wv, Wh, s, o["cg_iterations"])
+            else:
+                c_i, c_d, Wv, Wh = prob.weights(s)
+                M = np.empty((H, W, 6))
+                rhs = np.empty((H, W, 3))
+                K.assemble(a_i, a_d, c_i, c_d, r_i, r_d, prob.s0, Wv, Wh, M, rhs)
+                K.pcg(M, rhs, Wv, Wh, s, o["cg_iterations"])
+    return s, prob
+
+
+def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
+    r"""Dense 3-D velocities of the pixels of an RGB-D frame from it and the next frame.
+
+    Minimises the energy of the module documentation (photometric + geometric data terms linearised
+    through the projection Jacobian, robust smoothness weighted down across depth edges) coarse to
+    fine with warping, by IRLS and block-Jacobi preconditioned conjugate gradients.
+
+    Parameters
+    ----------
+    rgb_t, rgb_t1 : ndarray
+        uint8 (H, W, 3) RGB, or float grey (H, W) in [0, 1] (``sigma_i`` is on that scale); both the
+        same kind.
+    depth_t, depth_t1 : ndarray, float, shape (H, W)
+        Depth Z in metres; 0, NaN or inf marks an invalid pixel.
+    cam : PinholeCamera
+        Intrinsics of the (registered) colour and depth images.
+    dt : float, > 0
+        Time between the frames (s).
+    **options
+        ``lam`` (0.05): smoothness weight :math:`\lambda`.
+        ``sigma_i`` (0.02): photometric scale (grey levels in [0, 1]); residuals well above it are
+        treated as outliers by the Charbonnier penalty.
+        ``sigma_d`` (0.004 m): geometric scale (depth noise).
+        ``sigma_s`` (0.001 m): smoothness scale: neighbour displacement differences well above it are
+        discontinuities.
+        ``edge_scale`` (3.0): :math:`\kappa` of the edge weights :math:`w_{pq}`, in pixel footprints.
+        ``occlusion`` (0.02 m): a warped depth this much in front of the moved point marks it occluded.
+        ``penalty`` (``"charbonnier"``): or ``"quadratic"`` (every term squared: the weights are
+        constant and each warp minimises its linearised energy, up to the CG iterations).
+        ``levels`` (None: as many as fit): pyramid levels; ``min_size`` (6): smallest side of the
+        coarsest level (large motions need deep pyramids). ``warps`` (3), ``irls`` (2),
+        ``cg_iterations`` (15): per level, warps; per warp, reweightings; per reweighting, CG
+        iterations. ``blur`` (0.8 px): Gaussian pre-smoothing
+        of the images. ``use_color``, ``use_depth`` (True): switch a data term off (ablation).
+        ``backend`` (``"auto"``): ``"numba"`` (compiled loops, :mod:`flowtrack._rgbd_kernels`),
+        ``"numpy"`` (vectorised, about 5x slower) or ``"auto"`` (numba when importable).
+        ``return_info`` (False): also return a dict with ``levels`` and the finest level's
+        linearised problem (``problem``, for tests and teaching).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3)
+        Velocity (m/s) of each pixel's point, camera frame at t; NaN where ``depth_t`` is invalid.
+
+    Raises
+    ------
+    ValueError
+        Shapes that disagree, ``dt <= 0``, wrong dtypes or channel counts, negative depth, no valid
+        depth (each names the argument).
+    TypeError
+        ``cam`` not a :class:`~flowtrack.camera.PinholeCamera`, unknown option.
+    """
+    I0 = _check_image(rgb_t, "rgb_t")
+    I1 = _check_image(rgb_t1, "rgb_t1")
+    if I1.dtype.kind != I0.dtype.kind or I1.shape != I0.shape:
+        raise ValueError(f"rgb_t1 must be like rgb_t ({I0.dtype} {I0.shape}), got {I1.dtype} {I1.shape}")
+    shape = I0.shape[:2]
+    D0 = _check_depth(depth_t, "depth_t", shape)
+    D1 = _check_depth(depth_t1, "depth_t1", shape)
+    cam = _check_cam(cam)
+    if cam.width is not None and cam.height is not None and (cam.height, cam.width) != shape:
+        raise ValueError(f"cam is for {cam.height}×{cam.width} images, the images are {shape[0]}×{shape[1]}")
+    dt = positive(dt, "dt")
+    o = _options(options)
+    I0, I1 = _grey(I0), _grey(I1)
+    if o["blur"] > 0:
+        I0 = ndimage.gaussian_filter(I0, o["blur"], mode="nearest")
+        I1 = ndimage.gaussian_filter(I1, o["blur"], mode="nearest")
+    H, W = shape
+    n = _n_levels(H, W, o["min_size"], o["levels"])
+    pyr = _pyramid(I0, D0, I1, D1, cam, n)
+    s = None
+    prob = None
+    for lev in range(n - 1, -1, -1):
+        Il0, Dl0, Il1, Dl1, intr = pyr[lev]
+        h, w = Il0.shape
+        s = np.zeros((h, w, 3)) if s is None else _upsample(s, (h, w))
+        s, prob = _level(Il0, Dl0, Il1, Dl1, intr, s, o)
+    v = s / dt
+    v[~(D0 > 0)] = np.nan
+    if o["return_info"]:
+        return v, {"levels": n, "problem": prob}
+    return v
+
+
+def rgbd_point_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
+    r""":func:`rgbd_scene_flow` as point-cloud flow: the cloud of frame t and the velocity of each point.
+
+    The cloud is the back-projection of ``depth_t`` at its valid pixels in row-major order, i.e.
+    ``backproject(depth_t, cam)[valid]`` with ``valid = isfinite(depth_t) & (depth_t > 0)`` — the
+    order of :attr:`flowtrack.synth.Frame.points` and of the demo's clouds — so the velocities line up
+    with any subsample of it taken by index.
+
+    Parameters
+    ----------
+    rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options
+        As in :func:`rgbd_scene_flow`.
+
+    Returns
+    -------
+    points : ndarray, shape (N, 3)
+        Camera-frame points at t (metres), N = number of valid pixels of ``depth_t``.
+    velocities : ndarray, shape (N, 3)
+        Their velocities (m/s), finite.
+
+    Examples
+    --------
+    >>> from flowtrack.synth import make_scene
+    >>> scene = make_scene(n_objects=1, n_frames=2, image_size=(48, 64), seed=0)
+    >>> f0, f1 = scene.frames
+    >>> X, v = rgbd_point_flow(f0.rgb, f0.depth, f1.rgb, f1.depth, scene.camera, scene.dt)
+    >>> bool(np.allclose(X, f0.points)) and v.shape == f0.gt_flow.shape
+    True
+    """
+    v = rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options)
+    if isinstance(v, tuple):  # return_info=True
+        v = v[0]
+    D0 = _check_depth(depth_t, "depth_t", v.shape[:2])
+    valid = D0 > 0
+    from .camera import backproject
+
+    return backproject(D0, cam)[valid], v[valid]
