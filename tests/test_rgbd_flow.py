@@ -3,7 +3,7 @@
 Oracles: analytically rendered translating planes (exact flow), the camera module's projection
 Jacobian, central finite differences of the energy, scipy's direct sparse solver on a system assembled
 here from the definition (with flowtrack.variational.grid_laplacian), and the Euler–Lagrange equations
-derived by sympy (flowtrack.symbolic_rgbd).
+derived by sympy (flowtrack.symbolic.rgbd).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from scipy.sparse.linalg import spsolve
 from flowtrack import rgbd_flow as R
 from flowtrack.camera import PinholeCamera, projection_jacobian
 from flowtrack.sceneflow import rgbd_scene_flow
-from flowtrack.symbolic_rgbd import pixel_data_term, rgbd_euler_lagrange
+from flowtrack.symbolic.rgbd import pixel_data_term, rgbd_euler_lagrange
 from flowtrack.variational import grid_laplacian
 
 CAM = PinholeCamera(120.0, 120.0, 47.5, 35.5)

@@ -33,7 +33,7 @@ tests and lessons can compare the derivation with the numerical reference implem
   (Problem 4).
 
 The package mirrors the lessons: :mod:`~flowtrack.symbolic.camera` (lesson 1),
-:mod:`~flowtrack.symbolic.variational` (2), :mod:`~flowtrack.symbolic.graph` (3),
+:mod:`~flowtrack.symbolic.variational` and :mod:`~flowtrack.symbolic.rgbd` (2), :mod:`~flowtrack.symbolic.graph` (3),
 :mod:`~flowtrack.symbolic.filtering` (4), :mod:`~flowtrack.symbolic.association` (5),
 :mod:`~flowtrack.symbolic.clustering` (6) and :mod:`~flowtrack.symbolic.five_languages` (7); every
 name is importable from ``flowtrack.symbolic`` itself.
@@ -89,6 +89,11 @@ from .graph import (
     graph_normal_equations,
     graph_normal_equations_numeric,
 )
+from .rgbd import (
+    pixel_data_term,
+    rgbd_energy_density,
+    rgbd_euler_lagrange,
+)
 from .variational import (
     euler_lagrange_scene_flow,
     scene_flow_lagrangian,
@@ -121,6 +126,7 @@ __all__ = [
     "kalman_posterior_numeric",
     "normalized_cut",
     "normalized_cut_numeric",
+    "pixel_data_term",
     "process_noise_orderings",
     "projection_jacobian",
     "projection_jacobian_numeric",
@@ -128,6 +134,8 @@ __all__ = [
     "rigid_mean_velocity",
     "rigid_mean_velocity_numeric",
     "rigid_twist_mean_velocity_numeric",
+    "rgbd_energy_density",
+    "rgbd_euler_lagrange",
     "scene_flow_lagrangian",
     "steady_state_variance_scalar",
     "steady_state_variance_scalar_numeric",
