@@ -23,7 +23,8 @@ import nbformat
 import numpy as np
 import pytest
 
-from flowtrack.grading.exercises import EXERCISES, _ex09_expected, get_exercise, plain_data, run_in_process
+from flowtrack.grading.exercises import EXERCISES, get_exercise, plain_data, run_in_process
+from flowtrack.grading.exercises.ex09_track_management import expected_frames
 from flowtrack.grading.spec import Call, Exercise, GradedTest, Outcome, student_seed
 from grading_helpers import RecordingSandbox
 
@@ -687,14 +688,14 @@ def test_ex09_tracker_follows_the_stated_rule():
             for _ in range(int(rng.integers(1, 30)))
         ]
         min_hits, max_misses = int(rng.integers(1, 4)), int(rng.integers(0, 5))
-        assert _ex09_expected(frames, min_hits, max_misses) == _bookkeeping_oracle(
+        assert expected_frames(frames, min_hits, max_misses) == _bookkeeping_oracle(
             frames, min_hits, max_misses
         ), trial
 
 
 def test_ex08_expected_optimum_matches_brute_force():
     """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
-    from flowtrack.grading.exercises import _assignment_check
+    from flowtrack.grading.exercises.ex08_hungarian import assignment_check
 
     rng = np.random.default_rng(8)
     for _ in range(30):
@@ -707,7 +708,7 @@ def test_ex08_expected_optimum_matches_brute_force():
                 s = sum(C[r, c] for r, c in zip(rows, cols))
                 if best is None or s < best[0]:
                     best = (s, [[r, c] for r, c in zip(rows, cols)])
-        assert _assignment_check(C)(Outcome(True, best[1]))[0] == 1.0
+        assert assignment_check(C)(Outcome(True, best[1]))[0] == 1.0
         if K > 0 and np.ptp(C) > 0:
             worst = max(
                 (sum(C[r, c] for r, c in zip(range(K), cols)), cols)
@@ -715,7 +716,7 @@ def test_ex08_expected_optimum_matches_brute_force():
             )
             if M <= N and worst[0] > best[0]:
                 pairs = [[r, c] for r, c in zip(range(K), worst[1])]
-                assert _assignment_check(C)(Outcome(True, pairs))[0] == 0.0
+                assert assignment_check(C)(Outcome(True, pairs))[0] == 0.0
 
 
 # --------------------------------------------------------------------------------------------------

@@ -408,9 +408,9 @@ def add(a, b):
         x = np.arange(3.0)
         assert compare_arrays(sb.run([Call("mul", (x, 2.0))], timeout=10)[0], 2 * x)[0]
     if uid is not None:  # grading as root: a per-sandbox uid, so we can look for survivors
-        from flowtrack.grading.sandbox import _uid_has_processes
+        from flowtrack.grading.isolation import uid_has_processes
 
-        assert not _uid_has_processes(uid)
+        assert not uid_has_processes(uid)
 
 
 def test_signals_and_ctypes_cannot_reach_the_grader(mode):
@@ -452,16 +452,16 @@ def test_cleanup_does_not_chmod_through_planted_symlinks():
     import shutil
     import tempfile
 
-    from flowtrack.grading.sandbox import _rmtree
+    from flowtrack.grading.isolation import remove_tree
 
     tmp_path = Path(tempfile.mkdtemp(prefix="ft-rmtree-"))  # traversable by the uid used below
     try:
-        _check_cleanup(tmp_path, _rmtree)
+        _check_cleanup(tmp_path, remove_tree)
     finally:
         shutil.rmtree(tmp_path, ignore_errors=True)
 
 
-def _check_cleanup(tmp_path, _rmtree):
+def _check_cleanup(tmp_path, remove_tree):
     target = tmp_path / "grader_secret"
     target.write_text("x")
     target.chmod(0o600)
@@ -483,7 +483,7 @@ def _check_cleanup(tmp_path, _rmtree):
             if uid is not None:
                 os.setresgid(uid, uid, uid)
                 os.setresuid(uid, uid, uid)
-            _rmtree(work)
+            remove_tree(work)
             code = 0
         finally:
             os._exit(code)
@@ -511,12 +511,12 @@ def test_compare_non_finite_and_huge_values(value, ok):
 def test_writing_into_the_sandbox_caches_or_the_runtime(mode):
     # The filtered flowtrack copy, the runner, the Python runtime (or its mirror) and numpy are
     # shared by every later student: none of them may be changed from inside.
-    from flowtrack.grading import sandbox as sbmod
+    from flowtrack.grading import runtime
 
     # The copy and the runner this sandbox mounts (built here if a source edit made new ones);
     # the shared cache folders themselves gain copies for other blocked sets from parallel runs.
     grade("def add(a, b):\n    return np.asarray(a) + b\n")
-    mounted = (sbmod._filtered_flowtrack(("flowtrack.grading",)), sbmod._runner_dir())
+    mounted = (runtime.filtered_flowtrack(("flowtrack.grading",)), runtime.runner_dir())
     before = [_snapshot(d) for d in mounted]
     cell = """
 import os, sys, flowtrack, numpy

@@ -281,14 +281,14 @@ def test_root_with_a_private_tmpdir_still_grades(tmp_path, monkeypatch):
     # unprivileged uid must still reach its cache and its directory.
     import tempfile
 
-    from flowtrack.grading import sandbox as sbmod
+    from flowtrack.grading import cache
 
     private = tmp_path / "private"
     private.mkdir(mode=0o700)
     monkeypatch.delenv("FLOWTRACK_SANDBOX_CACHE", raising=False)
     monkeypatch.setattr(tempfile, "tempdir", str(private))
-    root = sbmod._cache_root()
-    assert not root.is_relative_to(private) and sbmod._world_readable(root / "work", read=False)
+    root = cache.cache_root()
+    assert not root.is_relative_to(private) and cache.world_readable(root / "work", read=False)
     with Sandbox([("a", "def f(x):\n    return x + 1\n")], limits=FAST) as sb:
         assert sb.run([Call("f", (1,))], timeout=20)[0].value == 2
 
@@ -297,16 +297,17 @@ def test_root_with_a_private_tmpdir_still_grades(tmp_path, monkeypatch):
 def test_root_with_a_private_venv_still_grades(tmp_path, monkeypatch):
     # A fresh clone under /root (mode 700) with its .venv there: the unprivileged uid cannot read
     # those packages, so the sandbox gets a world-readable mirror of them (without flowtrack).
+    from flowtrack.grading import runtime
     from flowtrack.grading import sandbox as sbmod
 
-    real = sbmod._site_dirs()
+    real = runtime.site_dirs()
     private = tmp_path / "venv" / "site-packages"
     (private / "mypkg").mkdir(parents=True)
     (private / "mypkg" / "__init__.py").write_text("X = 42\n")
     (private / "flowtrack").mkdir()
     (private / "flowtrack" / "secret.py").write_text("S = 1\n")
     (tmp_path / "venv").chmod(0o700)
-    monkeypatch.setattr(sbmod, "_site_dirs", lambda: [*real, str(private)])
+    monkeypatch.setattr(sbmod, "site_dirs", lambda: [*real, str(private)])
     src = ("import glob\ndef f():\n    import mypkg\n"
            "    return [mypkg.X, glob.glob('/opt/*/site/*/flowtrack')]\n")
     for mode in ("bwrap", "fallback"):
@@ -329,16 +330,16 @@ def private_cache(monkeypatch):
     import shutil
     import tempfile
 
-    from flowtrack.grading import sandbox as sbmod
+    from flowtrack.grading import cache, runtime
 
-    makers = (sbmod._filtered_flowtrack, sbmod._runner_dir, sbmod._python_runtime)
+    makers = (runtime.filtered_flowtrack, runtime.runner_dir, runtime.python_runtime)
     for m in makers:
         m.cache_clear()
     base = Path(tempfile.mkdtemp(prefix="flowtrack-cache-test-"))
     base.chmod(0o711)
     monkeypatch.setenv("FLOWTRACK_SANDBOX_CACHE", str(base))
     try:
-        yield sbmod._cache_root()
+        yield cache.cache_root()
     finally:
         for m in makers:
             m.cache_clear()
@@ -352,7 +353,7 @@ def _aged(path, days):
 
 
 def test_stale_cached_copies_are_pruned_when_a_new_one_is_made(private_cache, tmp_path):
-    from flowtrack.grading import sandbox as sbmod
+    from flowtrack.grading import cache
 
     kind = private_cache / "ft"
     outside = tmp_path / "outside"
@@ -383,11 +384,11 @@ def test_stale_cached_copies_are_pruned_when_a_new_one_is_made(private_cache, tm
     _aged(link, 5)
 
     built = []
-    assert sbmod._atomic_dir(current, built.append, prune=True) == current
+    assert cache.atomic_dir(current, built.append, prune=True) == current
     assert built == [] and time.time() - current.stat().st_mtime < 60  # marked as used
     assert stale.exists()  # nothing new was made: nothing is pruned
 
-    new = sbmod._atomic_dir(kind / ("e" * 20), lambda tmp: (tmp / "x").write_text("1"), prune=True)
+    new = cache.atomic_dir(kind / ("e" * 20), lambda tmp: (tmp / "x").write_text("1"), prune=True)
     assert (new / "x").read_text() == "1"
     left = sorted(p.name for p in kind.iterdir())
     assert left == sorted([".build-x2", ".lock", "b" * 20, "c" * 20, "d" * 20, "e" * 20, "notes"])

@@ -12,8 +12,8 @@ the score of a test is
 Hidden tests draw their inputs from ``student_seed(student, exercise.id, test.name, secret)``, keyed
 by the instructor's secret when one is given (``flowtrack grade --secret-file``; without it the
 hidden inputs are predictable from the student's name); public tests from a fixed seed
-(:func:`public_seed`), the same one ``flowtrack check`` uses, so a student's own check and the
-instructor's grade agree on the public tests.
+(:func:`~flowtrack.grading.spec.public_seed`), the same one ``flowtrack check`` uses, so a student's
+own check and the instructor's grade agree on the public tests.
 
 Outputs of :func:`grade_class` (``out`` is the ``--out`` folder)::
 
@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from .._validation import positive_int
-from .spec import Exercise, GradedTest, Outcome, secret_id, student_seed
+from .spec import Exercise, GradedTest, Outcome, public_seed, secret_id, student_seed
 
 __all__ = [
     "ExerciseResult",
@@ -108,11 +108,6 @@ class ExerciseResult:
     @property
     def max_score(self) -> float:
         return float(sum(t.max_score for t in self.tests))
-
-
-def public_seed(exercise_id: str, test_name: str) -> int:
-    """The fixed seed of a public test (the same for every student, in ``check`` and ``grade``)."""
-    return student_seed("<public>", exercise_id, test_name)
 
 
 def _clip_message(text: str) -> str:
@@ -292,12 +287,13 @@ def exercises_hash(exercises: Sequence[Exercise]) -> str:
         desc += [[t.name, t.grade_id, float(t.points), bool(t.hidden), float(t.timeout)] for t in ex.tests]
         h.update(json.dumps(desc).encode())
         for t in ex.tests:
-            try:
-                src = inspect.getsourcefile(t.build)
-            except TypeError:
-                src = None
-            if src:
-                files.add(src)
+            for fn in (t.build, inspect.unwrap(t.build)):  # the scoring helpers and the test's module
+                try:
+                    src = inspect.getsourcefile(fn)
+                except TypeError:
+                    src = None
+                if src:
+                    files.add(src)
     for src in sorted(files):
         h.update(Path(src).read_bytes())
     return h.hexdigest()

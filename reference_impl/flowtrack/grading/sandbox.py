@@ -50,44 +50,22 @@ student can get around an in-process hook (e.g. through ctypes), which is why ``
 warns when it is not running under bubblewrap. ``FLOWTRACK_SANDBOX=fallback`` forces the fallback,
 ``FLOWTRACK_SANDBOX=bwrap`` requires bubblewrap.
 
-Cache
------
-What the sandbox reads is prepared once and kept in ``<tmp>/flowtrack-sandbox-<uid>/`` (``<tmp>`` is
-``$FLOWTRACK_SANDBOX_CACHE`` if set, else the temporary directory, or ``/tmp`` when root's temporary
-directory is private), a directory of this uid that nobody else can write: ``ft/<key>`` filtered
-flowtrack copies, ``python/<key>`` the mirrored runtime and ``site/<key>`` mirrored site-packages
-(root only), ``bin/<key>`` the runner, ``stubs/`` the stubs of blocked packages and ``work/`` the
-students' temporary directories. A copy's ``key`` is a fingerprint of what it was made from, so an
-upgrade of flowtrack or of the Python packages makes new copies. Each start of a child sets the mtime
-of the copies it uses to now (under a shared ``flock`` of ``<kind>/.lock``). Whenever a new copy of
-``ft``, ``python``, ``site`` or ``bin`` is created, the other copies of that kind whose mtime is more
-than a day old (``_PRUNE_AFTER``) are removed, under the exclusive lock: renamed out of the way, then
-deleted without following symlinks. A copy in use was touched when its child started, minutes ago at
-most (in the grader a child serves one student's tests), so it is never that old; one removed while a
-process still remembered it is rebuilt at that process's next start. ``stubs`` (one per blocked
-package, not versioned) and ``work`` are not pruned.
+The prepared copies the sandbox reads are kept between runs in a cache (:mod:`flowtrack.grading.cache`);
+:mod:`flowtrack.grading.runtime` makes them, :mod:`flowtrack.grading.isolation` starts and ends the
+child's isolation, :mod:`flowtrack.grading.wire` encodes the data both ways.
 """
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
-import functools
-import hashlib
-import itertools
 import json
 import math
 import os
-import re
 import resource
 import select
 import shutil
 import signal
-import stat
 import struct
 import subprocess
-import sys
-import sysconfig
 import tempfile
 import time
 from collections.abc import Sequence
@@ -95,33 +73,40 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from .cache import cache_root, live_copy, world_readable
+from .isolation import (
+    SandboxUnavailable,
+    bwrap_base,
+    bwrap_status,
+    choose_mode,
+    drop_to,
+    kill_uid,
+    remove_tree,
+    sandbox_uid,
+    signal_name,
+    tree_usage,
+    user_tasks,
+)
+from .runtime import (
+    FLOWTRACK_DIR,
+    filtered_flowtrack,
+    locate_module,
+    mirror_site,
+    python_runtime,
+    runner_dir,
+    site_dirs,
+    stub_dir,
+)
 from .spec import Call, Outcome
+from .wire import is_plain, to_wire
 
 __all__ = ["Limits", "Sandbox", "SandboxUnavailable", "bwrap_status"]
 
 GiB = 1 << 30
 MiB = 1 << 20
-_FLOWTRACK_DIR = Path(__file__).resolve().parents[1]
-# Removed from the sandbox's copy of flowtrack: the grader itself and course tooling.
-_ALWAYS_REMOVED = ("grading", "ports", "cli", "book", "notebooks")
-_UID_BASE = 1_600_000_000
-_uid_counter = itertools.count()
 _SANDBOX_HOME = "/home/student"
 _OPT = "/opt/flowtrack-sandbox"
 _DISK_POLL = 0.2  # seconds between measurements of the child's directory while waiting for it
-# A cached copy (filtered flowtrack, mirrored runtime or site-packages, runner) not used for this long
-# is removed when a newer copy of its kind is made. Far longer than a child lives (minutes), short
-# enough that upgrades do not pile up copies.
-_PRUNE_AFTER = 24 * 3600.0
-# What the cache's kind directories hold: fingerprints, builds in progress (or crashed) and copies
-# being deleted; anything else is left alone.
-_CACHE_ENTRY = re.compile(r"[0-9a-f]{16,64}|\.build-[^/]+|\.trash-[^/]+")
-
-
-class SandboxUnavailable(RuntimeError):
-    """``FLOWTRACK_SANDBOX=bwrap`` was requested but bubblewrap cannot run here."""
 
 
 @dataclass(frozen=True)
@@ -175,492 +160,6 @@ class Limits:
             raise ValueError("Limits.processes must be >= 4 (the sandbox itself needs a few)")
         if self.open_files < 16:
             raise ValueError("Limits.open_files must be >= 16 (Python needs a few)")
-
-
-# --------------------------------------------------------------------------------------------------
-# Cached, trusted preparation: cache dir, Python runtime, filtered flowtrack, stubs, the runner.
-
-
-def _cache_root() -> Path:
-    base = Path(os.environ.get("FLOWTRACK_SANDBOX_CACHE") or tempfile.gettempdir())
-    explicit = bool(os.environ.get("FLOWTRACK_SANDBOX_CACHE"))
-    if os.geteuid() == 0 and not explicit and not _world_readable(base, read=False):
-        # root with a private TMPDIR (e.g. /root/tmp): the sandbox's unprivileged uid could not
-        # reach its files there; use the machine's shared temporary directory instead.
-        shared = [Path(d) for d in ("/tmp", "/var/tmp") if _world_readable(Path(d), read=False)]
-        base = shared[0] if shared else base
-    root = base / f"flowtrack-sandbox-{os.geteuid()}"
-    try:
-        root.mkdir(mode=0o755)
-    except FileExistsError:
-        pass
-    st = os.lstat(root)
-    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.geteuid() or st.st_mode & 0o022:
-        raise RuntimeError(f"the sandbox cache {root} is not a private directory of this user")
-    os.chmod(root, 0o755)
-    for sub in ("work", "ft", "stubs", "python", "bin", "site"):
-        d = root / sub
-        d.mkdir(mode=0o755, exist_ok=True)
-        os.chmod(d, 0o711 if sub == "work" else 0o755)
-    return root
-
-
-def _world_readable(path: Path, read: bool = True) -> bool:
-    """True when ``path`` and its ancestors are traversable by others (and ``path`` readable)."""
-    path = Path(path).resolve()
-    try:
-        for p in [path, *path.parents]:
-            mode = os.stat(p).st_mode
-            if stat.S_ISDIR(mode) and not mode & stat.S_IXOTH:
-                return False
-        return not read or bool(os.stat(path).st_mode & stat.S_IROTH)
-    except OSError:
-        return False
-
-
-def _atomic_dir(final: Path, build, *, prune: bool = False) -> Path:
-    """Build a directory with ``build(tmp)`` and rename it into place (first writer wins).
-
-    An existing ``final`` is only marked as used (:func:`_mark_used`). With ``prune``, making a new
-    ``final`` also removes its kind's stale copies (:func:`_prune_stale`).
-    """
-    if _mark_used(final):
-        return final
-    tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=final.parent))
-    created = False
-    try:
-        build(tmp)
-        os.chmod(tmp, 0o755)
-        try:
-            os.rename(tmp, final)
-            created = True
-        except OSError:
-            if not final.is_dir():
-                raise
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-    if created and prune:
-        _prune_stale(final.parent, keep=final.name)
-    return final
-
-
-@contextlib.contextmanager
-def _kind_lock(kind_dir: Path, exclusive: bool):
-    """``flock`` of ``kind_dir/.lock``: shared to mark a copy used, exclusive to prune."""
-    fd = os.open(kind_dir / ".lock", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
-        yield
-    finally:
-        os.close(fd)  # releases the lock
-
-
-def _mark_used(copy: Path) -> bool:
-    """Set the mtime of the cached ``copy`` to now; False when it does not exist (not built yet, or
-    pruned since a caller remembered it).
-
-    Done under the shared lock of its kind, so a concurrent :func:`_prune_stale` either sees the new
-    mtime and keeps the copy, or has already moved it away and this returns False.
-    """
-    if not copy.parent.is_dir():  # the whole cache was removed (e.g. by a /tmp cleaner)
-        return False
-    with _kind_lock(copy.parent, exclusive=False):
-        try:
-            st = os.lstat(copy)
-        except FileNotFoundError:
-            return False
-        if not stat.S_ISDIR(st.st_mode):
-            return False
-        try:
-            os.utime(copy)
-        except OSError:
-            pass
-        return True
-
-
-def _live(make, *args, where=lambda path: path):
-    """``make(*args)``, an lru-cached maker of a cached copy, with the copy (``where(value)``, None for
-    no copy) marked as used; made afresh when the copy it remembered is gone (pruned meanwhile)."""
-    value = make(*args)
-    path = where(value)
-    if path is not None and not _mark_used(path):
-        make.cache_clear()
-        value = make(*args)
-    return value
-
-
-def _prune_stale(kind_dir: Path, keep: str, max_age: float = _PRUNE_AFTER) -> list[str]:
-    """Remove the cached copies in ``kind_dir`` other than ``keep`` unused for ``max_age`` seconds.
-
-    Only directories of this uid whose names look like cache entries (:data:`_CACHE_ENTRY`) inside
-    a ``kind_dir`` and cache root of this uid that nobody else can write are considered; symlinks
-    are never followed (nor removed). Under the exclusive lock of the kind each stale copy (and a
-    ``.build-`` left by a crashed build, equally old) is renamed to ``.trash-...``, so no key ever
-    names a half-deleted copy; the renamed trees (and any ``.trash-`` left by an interrupted prune)
-    are deleted after the lock is released.
-
-    Returns
-    -------
-    list of str
-        The names of the copies removed.
-    """
-    uid = os.geteuid()
-    try:
-        for d in (kind_dir.parent, kind_dir):
-            st = os.lstat(d)
-            if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid or st.st_mode & 0o022:
-                return []
-    except OSError:
-        return []
-    removed: list[str] = []
-    trash: list[str] = []
-    with _kind_lock(kind_dir, exclusive=True):
-        now = time.time()
-        with os.scandir(kind_dir) as entries:
-            for e in entries:
-                if e.name == keep or not _CACHE_ENTRY.fullmatch(e.name):
-                    continue
-                try:
-                    st = e.stat(follow_symlinks=False)
-                except OSError:
-                    continue
-                if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid:
-                    continue
-                if e.name.startswith(".trash-"):
-                    trash.append(e.path)
-                    continue
-                if now - st.st_mtime < max_age:
-                    continue
-                dst = os.path.join(kind_dir, f".trash-{os.getpid()}-{time.monotonic_ns()}")
-                try:
-                    os.rename(e.path, dst)
-                except OSError:
-                    continue
-                trash.append(dst)
-                removed.append(e.name)
-    for path in trash:
-        shutil.rmtree(path, ignore_errors=True)  # fd-based on Linux: never follows a symlink
-    return removed
-
-
-def _link_or_copy(src: Path, dst: Path) -> None:
-    try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copy2(src, dst)
-        os.chmod(dst, 0o755 if os.access(src, os.X_OK) else 0o644)
-
-
-@dataclass(frozen=True)
-class _Runtime:
-    executable: str  # path of the python binary (outside)
-    prefix: str  # base prefix as seen inside bwrap (original path)
-    source: str  # directory bound at ``prefix`` inside bwrap
-    stdlib: tuple[str, ...]  # stdlib dirs (outside paths)
-    lib_dir: str | None  # LD_LIBRARY_PATH for the fallback when mirrored
-
-
-@functools.lru_cache(maxsize=4)
-def _python_runtime(need_world_readable: bool) -> _Runtime:
-    prefix = Path(sys.base_prefix)
-    ver = f"{sys.version_info.major}.{sys.version_info.minor}"
-    exe = prefix / "bin" / f"python{ver}"
-    if not exe.exists():
-        exe = Path(getattr(sys, "_base_executable", sys.executable)).resolve()
-    stdlib = Path(sysconfig.get_paths(vars={"installed_base": str(prefix), "base": str(prefix)})["stdlib"])
-    real_prefix = prefix.resolve()
-    stdlib_dirs = tuple(
-        p
-        for p in sys.path
-        if p and "site-packages" not in p and Path(p).is_dir()
-        and Path(p).resolve().is_relative_to(real_prefix)
-    ) or (str(stdlib),)
-    if not need_world_readable or (_world_readable(prefix) and _world_readable(exe)):
-        return _Runtime(str(exe), str(prefix), str(prefix), stdlib_dirs, None)
-    key = hashlib.sha256(f"{prefix}\0{sys.version}".encode()).hexdigest()[:16]
-    skip = {"site-packages", "test", "idlelib", "tkinter", "turtledemo", "lib2to3", "ensurepip"}
-
-    def build(tmp: Path) -> None:
-        (tmp / "bin").mkdir(mode=0o755)
-        _link_or_copy(exe, tmp / "bin" / exe.name)
-        (tmp / "lib").mkdir(mode=0o755)
-        for lib in (prefix / "lib").glob("libpython*"):
-            if lib.is_file():
-                _link_or_copy(lib, tmp / "lib" / lib.name)
-        src_std = prefix / "lib" / f"python{ver}"
-        for dirpath, dirnames, filenames in os.walk(src_std):
-            rel = Path(dirpath).relative_to(src_std)
-            if rel == Path("."):
-                dirnames[:] = [d for d in dirnames if d not in skip]
-            out = tmp / "lib" / f"python{ver}" / rel
-            out.mkdir(mode=0o755, parents=True, exist_ok=True)
-            for f in filenames:
-                if not os.path.islink(os.path.join(dirpath, f)):
-                    _link_or_copy(Path(dirpath) / f, out / f)
-
-    mirror = _atomic_dir(_cache_root() / "python" / key, build, prune=True)
-    mirror_std = tuple(str(mirror / Path(p).resolve().relative_to(prefix.resolve())) for p in stdlib_dirs)
-    return _Runtime(str(mirror / "bin" / exe.name), str(prefix), str(mirror), mirror_std, str(mirror / "lib"))
-
-
-def _site_dirs() -> list[str]:
-    import site
-
-    dirs = []
-    for d in site.getsitepackages():
-        if Path(d).is_dir() and d not in dirs:
-            dirs.append(d)
-    return dirs
-
-
-def _mirror_site(site: Path) -> Path:
-    """A world-readable mirror (hard links, else copies) of a site-packages folder the sandbox's
-    unprivileged uid cannot reach (e.g. a virtual environment under ``/root``); rebuilt when a
-    package is added, removed or replaced. flowtrack itself is left out (the sandbox gets its
-    filtered copy)."""
-    h = hashlib.sha256(f"{site.resolve()}\0{sys.version}".encode())
-    for e in sorted(os.scandir(site), key=lambda e: e.name):
-        h.update(f"{e.name}\0{e.stat(follow_symlinks=False).st_mtime_ns}\n".encode())
-    key = h.hexdigest()[:20]
-
-    def build(tmp: Path) -> None:
-        for dirpath, dirnames, filenames in os.walk(site):
-            rel = Path(dirpath).relative_to(site)
-            if rel == Path("."):
-                dirnames[:] = [d for d in dirnames if d != "flowtrack"]
-            dirnames[:] = [d for d in dirnames if d != "__pycache__"]
-            out = tmp / rel
-            out.mkdir(mode=0o755, parents=True, exist_ok=True)
-            os.chmod(out, 0o755)
-            for f in filenames:
-                src = Path(dirpath) / f
-                if src.is_symlink():
-                    os.symlink(os.readlink(src), out / f)
-                else:
-                    _link_or_copy(src, out / f)
-
-    return _atomic_dir(_cache_root() / "site" / key, build, prune=True)
-
-
-def _flowtrack_signature() -> str:
-    """Names, sizes and mtimes of the files the filtered copy takes (an edit of the grader itself,
-    which the copy leaves out, does not rebuild it)."""
-    h = hashlib.sha256()
-    for p in sorted(_FLOWTRACK_DIR.rglob("*")):
-        top = p.relative_to(_FLOWTRACK_DIR).parts[0].removesuffix(".py")
-        if "__pycache__" in p.parts or not p.is_file() or top in _ALWAYS_REMOVED:
-            continue
-        st = p.stat()
-        h.update(f"{p.relative_to(_FLOWTRACK_DIR)}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
-    return h.hexdigest()
-
-
-def _stub_source(name: str) -> str:
-    return f"raise ImportError({name + ' is not available in this exercise'!r})\n"
-
-
-@functools.lru_cache(maxsize=64)
-def _filtered_flowtrack(blocked: tuple[str, ...]) -> Path:
-    """A read-only copy of flowtrack with blocked modules replaced by stubs; returns its sys.path root."""
-    mods = sorted({b.split(".")[1] for b in blocked if b.startswith("flowtrack.")})
-    key = hashlib.sha256(f"{_flowtrack_signature()}\0{','.join(mods)}".encode()).hexdigest()[:20]
-
-    def build(tmp: Path) -> None:
-        dst = tmp / "flowtrack"
-
-        def ignore(d: str, names: list[str]) -> list[str]:
-            out = [n for n in names if n == "__pycache__" or n.endswith(".pyc")]
-            if Path(d).resolve() == _FLOWTRACK_DIR:
-                out += [n for n in names if n.removesuffix(".py") in _ALWAYS_REMOVED]
-            return out
-
-        shutil.copytree(_FLOWTRACK_DIR, dst, ignore=ignore)
-        for m in mods:
-            if (dst / m).is_dir():
-                shutil.rmtree(dst / m)
-                (dst / m).mkdir()
-                (dst / m / "__init__.py").write_text(_stub_source(f"flowtrack.{m}"))
-            else:
-                (dst / f"{m}.py").write_text(_stub_source(f"flowtrack.{m}"))
-        for dirpath, _dirnames, filenames in os.walk(tmp):
-            os.chmod(dirpath, 0o755)
-            for f in filenames:
-                os.chmod(os.path.join(dirpath, f), 0o644)
-
-    return _atomic_dir(_cache_root() / "ft" / key, build, prune=True)
-
-
-def _stub_dir(name: str) -> Path:
-    key = hashlib.sha256(name.encode()).hexdigest()[:16]
-
-    def build(tmp: Path) -> None:
-        (tmp / "__init__.py").write_text(_stub_source(name))
-        os.chmod(tmp / "__init__.py", 0o644)
-
-    return _atomic_dir(_cache_root() / "stubs" / key, build)
-
-
-@functools.lru_cache(maxsize=1)
-def _runner_dir() -> Path:
-    src = (Path(__file__).parent / "_child.py").read_bytes()
-    key = hashlib.sha256(src).hexdigest()[:16]
-
-    def build(tmp: Path) -> None:
-        (tmp / "_child.py").write_bytes(src)
-        os.chmod(tmp / "_child.py", 0o644)
-
-    return _atomic_dir(_cache_root() / "bin" / key, build, prune=True)
-
-
-def _locate_module(name: str, roots: Sequence[str]) -> Path | None:
-    """Where ``name`` (dotted) lives under one of ``roots`` (a package dir or a module file)."""
-    parts = name.split(".")
-    for root in roots:
-        base = Path(root, *parts[:-1])
-        if not base.is_dir():
-            continue
-        cand = base / parts[-1]
-        if cand.is_dir():
-            return cand
-        for f in sorted(base.glob(parts[-1] + ".*")):
-            if f.is_file() and (f.suffix == ".py" or f.suffix == ".so" or f.name.endswith(".pyd")):
-                return f
-    return None
-
-
-# --------------------------------------------------------------------------------------------------
-# Launch modes
-
-
-def _sandbox_uid() -> int | None:
-    """A fresh unprivileged uid for this sandbox when the grader is root, else None."""
-    if os.geteuid() != 0:
-        return None
-    # The whole pid (pid_max <= 2**22) so that two grader processes never share a uid: closing one
-    # student's sandbox kills every process of its uid.
-    return _UID_BASE + os.getpid() * 64 + next(_uid_counter) % 64
-
-
-def _drop_to(uid: int | None) -> None:
-    if uid is None:
-        return
-    os.setgroups([])
-    os.setresgid(uid, uid, uid)
-    os.setresuid(uid, uid, uid)
-
-
-def _bwrap_base(bwrap: str) -> list[str]:
-    args = [bwrap, "--unshare-all", "--unshare-user", "--die-with-parent", "--new-session",
-            "--uid", "65534", "--gid", "65534", "--ro-bind", "/usr", "/usr"]
-    for top in ("/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32"):
-        if os.path.islink(top):
-            args += ["--symlink", os.readlink(top), top]
-        elif os.path.isdir(top):
-            args += ["--ro-bind", top, top]
-    for f in ("/etc/ld.so.cache", "/etc/ld.so.conf", "/etc/ld.so.conf.d", "/etc/alternatives",
-              "/etc/localtime"):
-        args += ["--ro-bind-try", f, f]
-    args += ["--proc", "/proc", "--dev", "/dev"]
-    return args
-
-
-@functools.lru_cache(maxsize=2)
-def _probe_bwrap(as_other_uid: bool) -> tuple[bool, str]:
-    bwrap = shutil.which("bwrap")
-    if bwrap is None:
-        return False, "bubblewrap (bwrap) is not installed"
-    true = shutil.which("true") or "/usr/bin/true"
-    uid = _sandbox_uid() if as_other_uid else None
-    try:
-        r = subprocess.run([*_bwrap_base(bwrap), true], preexec_fn=lambda: _drop_to(uid),
-                           capture_output=True, timeout=30, env={"PATH": "/usr/bin:/bin"})
-    except (OSError, subprocess.SubprocessError) as exc:
-        return False, f"bwrap could not run ({exc})"
-    if r.returncode != 0:
-        why = r.stderr.decode(errors="replace").strip().splitlines()
-        return False, f"bwrap cannot create namespaces here ({why[-1] if why else r.returncode})"
-    return True, ""
-
-
-def bwrap_status() -> tuple[bool, str]:
-    """``(usable, why not)`` for bubblewrap on this machine (probed once per process)."""
-    return _probe_bwrap(os.geteuid() == 0)
-
-
-def _choose_mode() -> tuple[str, str]:
-    want = os.environ.get("FLOWTRACK_SANDBOX", "").strip().lower()
-    if want == "fallback":
-        return "fallback", "FLOWTRACK_SANDBOX=fallback"
-    ok, why = bwrap_status()
-    if ok:
-        return "bwrap", ""
-    if want == "bwrap":
-        raise SandboxUnavailable(f"FLOWTRACK_SANDBOX=bwrap but {why}")
-    return "fallback", why
-
-
-def _user_tasks() -> int:
-    uid = os.getuid()
-    n = 0
-    for p in Path("/proc").glob("[0-9]*"):
-        try:
-            st = p.stat()
-            if st.st_uid == uid:
-                n += len(os.listdir(p / "task"))
-        except OSError:
-            continue
-    return n
-
-
-def _signal_name(sig: int) -> str:
-    try:
-        return signal.Signals(sig).name
-    except ValueError:
-        return f"signal {sig}"
-
-
-# --------------------------------------------------------------------------------------------------
-# Encoding of grader-side arguments
-
-
-def _to_wire(x: Any, depth: int = 0) -> Any:
-    if depth > 32:
-        raise TypeError("Call arguments are nested too deeply")
-    if x is None or isinstance(x, bool | int | float | str):
-        return x
-    if isinstance(x, np.ndarray):
-        if x.dtype.kind == "b":
-            dtype = "bool"
-        elif x.dtype.kind in "iu":
-            dtype = "int64"
-        elif x.dtype.kind == "f":
-            dtype = "float64"
-        else:
-            raise TypeError(f"Call arguments: arrays of dtype {x.dtype} cannot be sent to the sandbox")
-        return {"__ndarray__": np.asarray(x, dtype=dtype).tolist(), "dtype": dtype, "shape": list(x.shape)}
-    if isinstance(x, np.generic):
-        return _to_wire(x.item(), depth + 1)
-    if isinstance(x, list | tuple):
-        return [_to_wire(v, depth + 1) for v in x]
-    if isinstance(x, dict):
-        if not all(isinstance(k, str) for k in x):
-            raise TypeError("Call arguments: dict keys must be str")
-        return {k: _to_wire(v, depth + 1) for k, v in x.items()}
-    raise TypeError(f"Call arguments of type {type(x).__name__} cannot be sent to the sandbox")
-
-
-def _plain(x: Any, depth: int = 0) -> bool:
-    if depth > 64:
-        return False
-    t = type(x)
-    if x is None or t in (bool, int, float, str):
-        return True
-    if t is list:
-        return all(_plain(v, depth + 1) for v in x)
-    if t is dict:
-        return all(type(k) is str and _plain(v, depth + 1) for k, v in x.items())
-    return False
 
 
 class _ChildGone(Exception):
@@ -730,14 +229,14 @@ class Sandbox:
         self.hidden_paths = tuple(str(Path(p).resolve()) for p in hidden_paths)
         self.cell_errors: dict[str, str] = {}
         self.stdout = ""
-        self._mode, why = _choose_mode()
+        self._mode, why = choose_mode()
         self.isolation = "bwrap" if self._mode == "bwrap" else f"fallback: {why}"
-        self._cache = _cache_root()
+        self._cache = cache_root()
         self._workdir_parent = Path(workdir_parent) if workdir_parent is not None else self._cache / "work"
         if not self._workdir_parent.is_dir():
             raise ValueError(f"workdir_parent {self._workdir_parent} is not a directory")
         self._uid: int | None = None  # a fresh unprivileged uid per child when grading as root
-        if os.geteuid() == 0 and not _world_readable(self._workdir_parent, read=False):
+        if os.geteuid() == 0 and not world_readable(self._workdir_parent, read=False):
             raise ValueError(
                 f"workdir_parent {self._workdir_parent} must be traversable by other users when "
                 "grading as root (the sandbox runs as an unprivileged uid)"
@@ -773,20 +272,20 @@ class Sandbox:
         for b in self.blocked:
             if b == "flowtrack" or b.startswith("flowtrack."):
                 continue
-            loc = _locate_module(b, roots)
+            loc = locate_module(b, roots)
             if loc is not None:
                 out.append((b, loc))
         return out
 
     def _command(self) -> tuple[list[str], dict[str, str], dict[str, Any], Path]:
-        self._uid = _sandbox_uid()
+        self._uid = sandbox_uid()
         # the cached copies are marked as used at every start (see "Cache" in the module docstring)
-        runtime = _live(_python_runtime, self._uid is not None,
+        runtime = live_copy(python_runtime, self._uid is not None,
                         where=lambda r: Path(r.source) if r.lib_dir is not None else None)
-        sites = _site_dirs()
+        sites = site_dirs()
         if self._uid is not None:
-            sites = [d if _world_readable(Path(d)) else str(_mirror_site(Path(d))) for d in sites]
-            unreadable = [d for d in sites if not _world_readable(Path(d))]
+            sites = [d if world_readable(Path(d)) else str(mirror_site(Path(d))) for d in sites]
+            unreadable = [d for d in sites if not world_readable(Path(d))]
             if unreadable:
                 raise RuntimeError(
                     f"the sandbox's unprivileged uid cannot read the Python packages in {unreadable[0]} "
@@ -794,8 +293,8 @@ class Sandbox:
                     f"chmod -R a+rX {unreadable[0]} and chmod o+x on its parent folders"
                 )
         ft_blocked = tuple(sorted(b for b in self.blocked if b.startswith("flowtrack.")))
-        ft_root = _live(_filtered_flowtrack, ft_blocked)
-        runner = _live(_runner_dir)
+        ft_root = live_copy(filtered_flowtrack, ft_blocked)
+        runner = live_copy(runner_dir)
         workdir = Path(tempfile.mkdtemp(prefix="student-", dir=self._workdir_parent))
         # workdir/home is the student's HOME and cwd, workdir/tmp its /tmp: together the only places
         # it can write (measured as one tree, see Limits.disk_bytes).
@@ -808,12 +307,12 @@ class Sandbox:
         env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
                "MPLBACKEND": "Agg", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8",
                "PATH": "/usr/bin:/bin"}
-        stdlib = runtime.stdlib if self._mode == "fallback" else _python_runtime(False).stdlib
+        stdlib = runtime.stdlib if self._mode == "fallback" else python_runtime(False).stdlib
         roots = [*stdlib, *sites]
         blocked_locs = self._blocked_locations(roots)
         if self._mode == "bwrap":
             inner_sites = [f"{_OPT}/site/{i}" for i in range(len(sites))]
-            cmd = _bwrap_base(shutil.which("bwrap") or "bwrap")
+            cmd = bwrap_base(shutil.which("bwrap") or "bwrap")
             cmd += ["--ro-bind", runtime.source, runtime.prefix]
             for src, dst in zip(sites, inner_sites):
                 cmd += ["--ro-bind", src, dst]
@@ -825,7 +324,7 @@ class Sandbox:
                 for src, dst in zip(sites, inner_sites):
                     if loc.is_relative_to(src):
                         inner = dst + "/" + str(loc.relative_to(src))
-                stub = _stub_dir(name)
+                stub = stub_dir(name)
                 cmd += ["--ro-bind", str(stub if loc.is_dir() else stub / "__init__.py"), inner]
             # The student's directory is the only writable place (HOME and /tmp; measured by the
             # grader, see Limits.disk_bytes); bubblewrap's own root and /dev are tmpfs in RAM that
@@ -841,10 +340,10 @@ class Sandbox:
             env.update(HOME=str(home), TMPDIR=str(tmp))
             if runtime.lib_dir:
                 env["LD_LIBRARY_PATH"] = runtime.lib_dir
-            deny = [str(_FLOWTRACK_DIR), str(self._cache / "ft"), str(self._cache / "stubs"),
+            deny = [str(FLOWTRACK_DIR), str(self._cache / "ft"), str(self._cache / "stubs"),
                     *self.hidden_paths, *(str(loc) for _, loc in blocked_locs)]
-            repo = _FLOWTRACK_DIR.parent.parent
-            in_site = any(_FLOWTRACK_DIR.is_relative_to(s) for s in sites)
+            repo = FLOWTRACK_DIR.parent.parent
+            in_site = any(FLOWTRACK_DIR.is_relative_to(s) for s in sites)
             if not in_site and (repo / "pyproject.toml").exists():
                 deny.append(str(repo))
             cmd = [runtime.executable, "-I", "-S", "-B", str(runner / "_child.py")]
@@ -867,7 +366,7 @@ class Sandbox:
             rl.setrlimit(rl.RLIMIT_FSIZE, (lim.file_size, lim.file_size))
             if nproc_outer is not None:
                 rl.setrlimit(rl.RLIMIT_NPROC, (nproc_outer, nproc_outer))
-            _drop_to(uid)
+            drop_to(uid)
 
         return fn
 
@@ -888,7 +387,7 @@ class Sandbox:
             nproc_child = self.limits.processes
         else:
             nproc_outer = None
-            nproc_child = _user_tasks() + self.limits.processes
+            nproc_child = user_tasks() + self.limits.processes
         init.update(op="init", nproc=nproc_child, blocked=list(self.blocked), cells=self.cells)
         self._stderr = tempfile.TemporaryFile()
         try:
@@ -970,7 +469,7 @@ class Sandbox:
             value = json.loads(data.decode("utf-8"))
         except (UnicodeDecodeError, ValueError, RecursionError):
             raise _ChildGone("the sandbox sent a reply that is not valid data") from None
-        if not _plain(value):
+        if not is_plain(value):
             raise _ChildGone("the sandbox sent a reply that is not plain data")
         return value
 
@@ -981,7 +480,7 @@ class Sandbox:
             return
         self._next_disk_check = now + _DISK_POLL
         lim = self.limits
-        size, files = _tree_usage(self._workdir, lim.disk_files)
+        size, files = tree_usage(self._workdir, lim.disk_files)
         if files > lim.disk_files:
             raise _ChildGone(f"created more than {lim.disk_files} files (the disk limit)")
         if size > lim.disk_bytes:
@@ -1003,7 +502,7 @@ class Sandbox:
         if sig == signal.SIGKILL:
             return "was killed (it ran out of memory or exceeded a limit)"
         if sig:
-            return f"crashed ({_signal_name(sig)})"
+            return f"crashed ({signal_name(sig)})"
         tail = self._stderr_tail()
         if tail.startswith("bwrap:"):
             return f"the sandbox could not start: {tail}"
@@ -1043,7 +542,7 @@ class Sandbox:
         timeout = self.limits.wall_seconds if timeout is None else timeout
         if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not timeout > 0:
             raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
-        wire = [{"function": c.function, "args": _to_wire(list(c.args)), "kwargs": _to_wire(dict(c.kwargs))}
+        wire = [{"function": c.function, "args": to_wire(list(c.args)), "kwargs": to_wire(dict(c.kwargs))}
                 for c in calls]
         self.stdout = ""
         outcomes: list[Outcome] = []
@@ -1124,7 +623,7 @@ class Sandbox:
                 except OSError:
                     pass
         if self._uid is not None and p is not None:
-            _kill_uid(self._uid)
+            kill_uid(self._uid)
         if self._reply_fd is not None:
             os.close(self._reply_fd)
             self._reply_fd = None
@@ -1132,77 +631,7 @@ class Sandbox:
             self._stderr.close()
             self._stderr = None
         if self._workdir is not None:
-            _rmtree(self._workdir)
+            remove_tree(self._workdir)
             self._workdir = None
 
 
-def _kill_uid(uid: int) -> None:
-    """SIGKILL every process of ``uid`` (a per-sandbox uid: only this student's processes)."""
-    pid = os.fork()
-    if pid == 0:  # pragma: no cover - child
-        try:
-            _drop_to(uid)
-            for _ in range(50):  # repeated: a fork bomb may be forking while we kill
-                os.kill(-1, signal.SIGKILL)
-                time.sleep(0.001)
-        except BaseException:
-            pass
-        os._exit(0)
-    os.waitpid(pid, 0)
-    deadline = time.monotonic() + 5
-    while time.monotonic() < deadline and _uid_has_processes(uid):
-        time.sleep(0.02)
-
-
-def _uid_has_processes(uid: int) -> bool:
-    """True while a live (not zombie) process of ``uid`` exists."""
-    for p in Path("/proc").glob("[0-9]*"):
-        try:
-            if p.stat().st_uid == uid and (p / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
-                return True
-        except (OSError, IndexError):
-            continue
-    return False
-
-
-def _tree_usage(root: Path, max_entries: int) -> tuple[int, int]:
-    """``(bytes allocated, entries)`` under ``root`` without following symlinks; stops counting
-    entries once ``max_entries`` is exceeded."""
-    size, entries, stack = 0, 0, [str(root)]
-    while stack and entries <= max_entries:
-        try:
-            it = os.scandir(stack.pop())
-        except OSError:
-            continue
-        with it:
-            for e in it:
-                entries += 1
-                try:
-                    st = e.stat(follow_symlinks=False)
-                except OSError:
-                    continue
-                size += st.st_blocks * 512
-                if stat.S_ISDIR(st.st_mode):
-                    stack.append(e.path)
-                if entries > max_entries:
-                    break
-    return size, entries
-
-
-def _rmtree(path: Path) -> None:
-    def onerror(func, p, exc_info):  # a student may have chmod-ed things
-        try:
-            # Never chmod through a symlink the student planted (it may point at a grader's file);
-            # only real directories of the tree are made writable again.
-            parent = os.path.dirname(p)
-            if not os.path.islink(parent) and os.path.isdir(parent):
-                os.chmod(parent, 0o700)
-            if not os.path.islink(p) and os.path.isdir(p):
-                os.chmod(p, 0o700)
-            func(p)
-        except OSError:
-            pass
-
-    shutil.rmtree(path, onerror=onerror)
-    if path.exists():
-        shutil.rmtree(path, ignore_errors=True)

@@ -27,6 +27,7 @@ __all__ = [
     "Scorer",
     "as_float_array",
     "compare_arrays",
+    "public_seed",
     "read_secret",
     "secret_id",
     "student_seed",
@@ -123,6 +124,16 @@ def student_seed(student: str, exercise: str, test: str, secret: bytes | None = 
     else:
         digest = hmac.new(_check_secret(secret), message, hashlib.sha256).digest()
     return int.from_bytes(digest[:8], "little") >> 1
+
+
+def public_seed(exercise_id: str, test_name: str) -> int:
+    """The fixed seed of a public test (the same for every student, in ``check``, ``grade`` and the
+    notebooks' in-process run).
+
+    >>> public_seed("ex01", "t") == student_seed("<public>", "ex01", "t")
+    True
+    """
+    return student_seed("<public>", exercise_id, test_name)
 
 
 SECRET_BYTES = 32  # what read_secret(create=True) writes; at least MIN_SECRET_BYTES are required

@@ -1,0 +1,94 @@
+"""Ex01: the projection Jacobian: the trusted tests of ``exercises/ex01_projection_jacobian.ipynb``."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..spec import Exercise, Outcome, as_float_array, compare_arrays
+from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+
+_EX01_X = np.array([[1.0, 2.0, 4.0], [0.0, 0.0, 1.0], [-0.5, 0.25, 2.0]])
+
+
+@graded_test("project: three points", "test_project", 1.0, hidden=False)
+def _ex01_project_public(rng):
+    from flowtrack.camera import project
+
+    return [
+        (
+            "project",
+            (_EX01_X, 100.0, 100.0, 50.0, 40.0),
+            {},
+            array_check(project(_EX01_X, pinhole(100, 100, 50, 40))),
+        )
+    ]
+
+
+@graded_test("project: random points and intrinsics", "test_project", 2.0, hidden=True)
+def _ex01_project_hidden(rng):
+    from flowtrack.camera import project
+
+    out = []
+    for n in (1, 5, 20):
+        X = points_in_front(rng, n)
+        fx, fy = (float(v) for v in rng.uniform(200.0, 800.0, 2))
+        cx, cy = (float(v) for v in rng.uniform(100.0, 400.0, 2))
+        out.append(("project", (X, fx, fy, cx, cy), {}, array_check(project(X, pinhole(fx, fy, cx, cy)))))
+    return out
+
+
+def _jacobian_check(expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9) -> Check:
+    """Per-entry credit: the share of the six Jacobian entries right at every point."""
+
+    def check(outcome: Outcome) -> tuple[float, str]:
+        ok, msg = compare_arrays(outcome, expected, rtol=rtol, atol=atol)
+        if ok:
+            return 1.0, "ok"
+        got = as_float_array(outcome.value, expected.shape) if outcome.ok else None
+        if got is None:
+            return 0.0, msg
+        good = [
+            (i, j)
+            for i in range(2)
+            for j in range(3)
+            if np.allclose(got[:, i, j], expected[:, i, j], rtol=rtol, atol=atol)
+        ]
+        wrong = [f"J[:, {i}, {j}]" for i in range(2) for j in range(3) if (i, j) not in good]
+        return len(good) / 6.0, f"wrong entries {', '.join(wrong)}"
+
+    return check
+
+
+@graded_test("Jacobian: three points", "test_jacobian", 2.0, hidden=False)
+def _ex01_jac_public(rng):
+    from flowtrack.camera import projection_jacobian
+
+    J = projection_jacobian(_EX01_X, pinhole(100.0, 100.0))
+    return [("projection_jacobian", (_EX01_X, 100.0, 100.0), {}, _jacobian_check(J))]
+
+
+@graded_test("Jacobian: random points and focal lengths", "test_jacobian", 5.0, hidden=True)
+def _ex01_jac_hidden(rng):
+    from flowtrack.camera import projection_jacobian
+
+    out = []
+    for n in (1, 7, 30):
+        X = points_in_front(rng, n)
+        fx, fy = (float(v) for v in rng.uniform(200.0, 800.0, 2))
+        out.append(
+            ("projection_jacobian", (X, fx, fy), {}, _jacobian_check(projection_jacobian(X, pinhole(fx, fy))))
+        )
+    return out
+
+
+EXERCISE = Exercise(
+    id="ex01_projection_jacobian",
+    title="The pinhole projection and its Jacobian",
+    notebook="ex01_projection_jacobian.ipynb",
+    answer_cells=("project", "projection_jacobian"),
+    blocked=("flowtrack.camera", "flowtrack.symbolic"),
+    tests=(_ex01_project_public, _ex01_project_hidden, _ex01_jac_public, _ex01_jac_hidden),
+)

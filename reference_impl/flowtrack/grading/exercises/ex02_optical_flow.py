@@ -1,0 +1,63 @@
+"""Ex02: optical flow from scene flow: the trusted tests of ``exercises/ex02_optical_flow.ipynb``."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..spec import Exercise, Outcome, as_float_array, compare_arrays
+from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+
+_EX02_X = np.array([[0.0, 0.0, 2.0], [1.0, -1.0, 4.0]])
+_EX02_V = np.array([[1.0, 0.0, 0.0], [0.0, 0.5, -1.0]])
+
+
+def _ex02_expected(X, V, dt, fx, fy):
+    from flowtrack.camera import optical_flow_from_scene_flow
+
+    return optical_flow_from_scene_flow(X, V, dt, pinhole(fx, fy))
+
+
+@graded_test("optical flow: two points", "test_optical_flow", 3.0, hidden=False)
+def _ex02_public(rng):
+    return [
+        (
+            "optical_flow",
+            (_EX02_X, _EX02_V, 0.1, 500.0, 500.0),
+            {},
+            array_check(_ex02_expected(_EX02_X, _EX02_V, 0.1, 500, 500)),
+        ),
+        (
+            "optical_flow",
+            (_EX02_X, _EX02_V, 1.0, 100.0, 200.0),
+            {},
+            array_check(_ex02_expected(_EX02_X, _EX02_V, 1.0, 100, 200)),
+        ),
+    ]
+
+
+@graded_test("optical flow: random points, velocities and time steps", "test_optical_flow", 7.0, hidden=True)
+def _ex02_hidden(rng):
+    out = []
+    for n, dt in ((1, 1.0), (6, float(rng.uniform(0.01, 0.2))), (25, float(rng.uniform(0.5, 2.0)))):
+        X = points_in_front(rng, n)
+        V = rng.normal(size=(n, 3))
+        fx, fy = (float(v) for v in rng.uniform(200.0, 800.0, 2))
+        out.append(("optical_flow", (X, V, dt, fx, fy), {}, array_check(_ex02_expected(X, V, dt, fx, fy))))
+    # motion along the viewing ray produces no optical flow (first order)
+    X = points_in_front(rng, 5)
+    V = X * rng.uniform(-2.0, 2.0, size=(5, 1))
+    out.append(("optical_flow", (X, V, 0.1, 400.0, 400.0), {}, array_check(np.zeros((5, 2)), atol=1e-9)))
+    return out
+
+
+EXERCISE = Exercise(
+    id="ex02_optical_flow",
+    title="Optical flow from scene flow",
+    notebook="ex02_optical_flow.ipynb",
+    answer_cells=("optical_flow",),
+    blocked=("flowtrack.camera", "flowtrack.symbolic"),
+    tests=(_ex02_public, _ex02_hidden),
+)

@@ -1,0 +1,92 @@
+"""Ex04: kNN graph Laplacian and graph scene flow: the trusted tests of ``exercises/ex04_graph_scene_flow.ipynb``."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..spec import Exercise, Outcome, as_float_array, compare_arrays
+from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+
+def _ex04_L(P, k, sigma):
+    from flowtrack.sceneflow import graph_laplacian, knn_graph
+
+    return graph_laplacian(knn_graph(P, k=k, sigma=sigma)).toarray()
+
+
+def _ex04_flow(P, Y, dt, lam, k, sigma):
+    from flowtrack.sceneflow import graph_scene_flow
+
+    return graph_scene_flow(P, Y, dt, lam, k=k, sigma=sigma, solver="splu")
+
+
+_EX04_P = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [3.0, 0.0, 0.0], [3.0, 1.0, 0.0]])
+_EX04_Y = _EX04_P + np.array([[0.1, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 0.2, 0.0]])
+
+
+@graded_test("Laplacian: four points", "test_laplacian", 2.0, hidden=False)
+def _ex04_L_public(rng):
+    return [
+        ("knn_laplacian", (_EX04_P, 1, 1.0), {}, array_check(_ex04_L(_EX04_P, 1, 1.0))),
+        ("knn_laplacian", (_EX04_P, 2, 2.0), {}, array_check(_ex04_L(_EX04_P, 2, 2.0))),
+    ]
+
+
+@graded_test("Laplacian: random clouds", "test_laplacian", 3.0, hidden=True)
+def _ex04_L_hidden(rng):
+    out = []
+    for n, k in ((6, 5), (12, 2), (30, 4), (40, 6)):
+        P = rng.normal(size=(n, 3))
+        sigma = float(rng.uniform(0.3, 1.5))
+        out.append(("knn_laplacian", (P, k, sigma), {}, array_check(_ex04_L(P, k, sigma))))
+    return out
+
+
+@graded_test("graph scene flow: four points", "test_graph_flow", 2.0, hidden=False)
+def _ex04_flow_public(rng):
+    return [
+        (
+            "graph_scene_flow",
+            (_EX04_P, _EX04_Y, 0.1, 0.0, 1, 1.0),
+            {},
+            array_check(_ex04_flow(_EX04_P, _EX04_Y, 0.1, 0.0, 1, 1.0)),
+        ),
+        (
+            "graph_scene_flow",
+            (_EX04_P, _EX04_Y, 0.1, 0.01, 1, 1.0),
+            {},
+            array_check(_ex04_flow(_EX04_P, _EX04_Y, 0.1, 0.01, 1, 1.0)),
+        ),
+    ]
+
+
+@graded_test("graph scene flow: random clouds", "test_graph_flow", 3.0, hidden=True)
+def _ex04_flow_hidden(rng):
+    out = []
+    for n, k in ((8, 3), (25, 4), (40, 6)):
+        P = rng.normal(size=(n, 3))
+        Y = P + 0.05 * rng.normal(size=(n, 3))
+        dt = float(rng.uniform(0.05, 0.5))
+        lam = float(rng.uniform(0.1, 2.0)) * dt**2
+        sigma = float(rng.uniform(0.5, 1.5))
+        out.append(
+            (
+                "graph_scene_flow",
+                (P, Y, dt, lam, k, sigma),
+                {},
+                array_check(_ex04_flow(P, Y, dt, lam, k, sigma)),
+            )
+        )
+    return out
+
+
+EXERCISE = Exercise(
+    id="ex04_graph_scene_flow",
+    title="The kNN graph Laplacian and graph scene flow",
+    notebook="ex04_graph_scene_flow.ipynb",
+    answer_cells=("knn_laplacian", "graph_scene_flow"),
+    blocked=("flowtrack.sceneflow", "flowtrack._graph", "flowtrack.variational", "flowtrack.clustering"),
+    tests=(_ex04_L_public, _ex04_L_hidden, _ex04_flow_public, _ex04_flow_hidden),
+)

@@ -1,0 +1,78 @@
+"""Ex05: constant-velocity model: the trusted tests of ``exercises/ex05_cv_model.ipynb``."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..spec import Exercise, Outcome, as_float_array, compare_arrays
+from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+
+def _ex05_F(dt):
+    from flowtrack.kalman import constant_velocity_model
+
+    return constant_velocity_model(dt, 1.0, 1.0, dim=2)[0]
+
+
+def _ex05_Q(dt, q):
+    from flowtrack.kalman import white_noise_acceleration_Q
+
+    return white_noise_acceleration_Q(dt, q, dim=2)
+
+
+@graded_test("F: dt = 0.5", "test_F", 1.0, hidden=False)
+def _ex05_F_public(rng):
+    return [("cv_transition", (0.5,), {}, array_check(_ex05_F(0.5)))]
+
+
+@graded_test("F: random dt", "test_F", 2.0, hidden=True)
+def _ex05_F_hidden(rng):
+    return [
+        ("cv_transition", (dt,), {}, array_check(_ex05_F(dt))) for dt in rng.uniform(0.01, 2.0, 3).tolist()
+    ]
+
+
+def _ex05_Q_properties(dt: float, q: float) -> Check:
+    """The public test only checks what the visible asserts check: shape, symmetry, Q[0,0], Q[2,0]."""
+    expected = _ex05_Q(dt, q)
+
+    def check(outcome: Outcome) -> tuple[float, str]:
+        if not outcome.ok:
+            return 0.0, outcome.error or "the call failed"
+        got = as_float_array(outcome.value, (4, 4))
+        if got is None:
+            return 0.0, "expected an array of shape (4, 4)"
+        if not np.allclose(got, got.T, rtol=1e-9, atol=1e-12):
+            return 0.0, "Q is not symmetric"
+        for i, j in ((0, 0), (2, 0)):
+            if not np.isclose(got[i, j], expected[i, j], rtol=1e-9, atol=1e-12):
+                return 0.0, f"Q[{i}, {j}] is wrong"
+        return 1.0, "ok"
+
+    return check
+
+
+@graded_test("Q: shape, symmetry, var(px) and cov(vx, px) for dt = 0.5, q = 2", "test_Q", 2.0, hidden=False)
+def _ex05_Q_public(rng):
+    return [("cv_process_noise", (0.5, 2.0), {}, _ex05_Q_properties(0.5, 2.0))]
+
+
+@graded_test("Q: the full matrix for random dt and q", "test_Q", 5.0, hidden=True)
+def _ex05_Q_hidden(rng):
+    # Q1d kron I2 and the syllabus' blkdiag(Q1d, Q1d) differ for every dt, q > 0
+    out = []
+    for dt, q in zip(rng.uniform(0.01, 2.0, 3).tolist(), rng.uniform(0.1, 10.0, 3).tolist()):
+        out.append(("cv_process_noise", (dt, q), {}, array_check(_ex05_Q(dt, q))))
+    return out
+
+
+EXERCISE = Exercise(
+    id="ex05_cv_model",
+    title="The constant-velocity model: F and the white-noise-acceleration Q",
+    notebook="ex05_cv_model.ipynb",
+    answer_cells=("cv_transition", "cv_process_noise"),
+    blocked=("flowtrack.kalman", "flowtrack.symbolic", "flowtrack.tracking"),
+    tests=(_ex05_F_public, _ex05_F_hidden, _ex05_Q_public, _ex05_Q_hidden),
+)

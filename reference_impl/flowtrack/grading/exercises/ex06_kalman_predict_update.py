@@ -1,0 +1,95 @@
+"""Ex06: Kalman predict and update: the trusted tests of ``exercises/ex06_kalman_predict_update.ipynb``."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..spec import Exercise, Outcome, as_float_array, compare_arrays
+from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+
+def _ex06_model(rng, n: int, m: int):
+    A = rng.normal(size=(n, n))
+    P = A @ A.T + 0.1 * np.eye(n)
+    B = rng.normal(size=(n, n))
+    Q = 0.1 * (B @ B.T)
+    F = np.eye(n) + 0.3 * rng.normal(size=(n, n))
+    H = rng.normal(size=(m, n))
+    C = rng.normal(size=(m, m))
+    R = C @ C.T + 0.2 * np.eye(m)
+    x = rng.normal(size=n)
+    z = rng.normal(size=m)
+    return x, P, F, Q, z, H, R
+
+
+def _ex06_predict(x, P, F, Q):
+    from flowtrack.kalman import KalmanFilter
+
+    m = 1
+    kf = KalmanFilter(F, np.zeros((m, len(x))), Q, np.eye(m), x, P)
+    kf.predict()
+    return kf.x, kf.P
+
+
+def _ex06_update(x, P, z, H, R):
+    from flowtrack.kalman import KalmanFilter
+
+    n = len(x)
+    kf = KalmanFilter(np.eye(n), H, np.zeros((n, n)), R, x, P)
+    kf.update(z)
+    return kf.x, kf.P
+
+
+def _state_check(expected: tuple[np.ndarray, np.ndarray]) -> Check:
+    return tuple_check([array_check(e, rtol=1e-6, atol=1e-9) for e in expected], ("x", "P"))
+
+
+_EX06_F = np.array([[1.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+_EX06_Q = 0.01 * np.eye(4)
+_EX06_H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+_EX06_R = 0.5 * np.eye(2)
+_EX06_x = np.array([0.0, 0.0, 1.0, 2.0])
+_EX06_P = np.eye(4)
+_EX06_z = np.array([1.5, 1.0])
+
+
+@graded_test("predict: constant-velocity model", "test_predict", 1.0, hidden=False)
+def _ex06_predict_public(rng):
+    args = (_EX06_x, _EX06_P, _EX06_F, _EX06_Q)
+    return [("kf_predict", args, {}, _state_check(_ex06_predict(*args)))]
+
+
+@graded_test("predict: random models", "test_predict", 3.0, hidden=True)
+def _ex06_predict_hidden(rng):
+    out = []
+    for n in (1, 3, 4, 6):
+        x, P, F, Q, *_ = _ex06_model(rng, n, 1)
+        out.append(("kf_predict", (x, P, F, Q), {}, _state_check(_ex06_predict(x, P, F, Q))))
+    return out
+
+
+@graded_test("update: position measurement", "test_update", 2.0, hidden=False)
+def _ex06_update_public(rng):
+    args = (_EX06_x, 2.0 * _EX06_P, _EX06_z, _EX06_H, _EX06_R)
+    return [("kf_update", args, {}, _state_check(_ex06_update(*args)))]
+
+
+@graded_test("update: random models", "test_update", 4.0, hidden=True)
+def _ex06_update_hidden(rng):
+    out = []
+    for n, m in ((1, 1), (4, 2), (6, 3), (3, 3)):
+        x, P, _, _, z, H, R = _ex06_model(rng, n, m)
+        out.append(("kf_update", (x, P, z, H, R), {}, _state_check(_ex06_update(x, P, z, H, R))))
+    return out
+
+
+EXERCISE = Exercise(
+    id="ex06_kalman_predict_update",
+    title="Kalman predict and update",
+    notebook="ex06_kalman_predict_update.ipynb",
+    answer_cells=("kf_predict", "kf_update"),
+    blocked=("flowtrack.kalman", "flowtrack.tracking", "flowtrack.particle", "flowtrack.bayes"),
+    tests=(_ex06_predict_public, _ex06_predict_hidden, _ex06_update_public, _ex06_update_hidden),
+)

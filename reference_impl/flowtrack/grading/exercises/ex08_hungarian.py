@@ -1,0 +1,89 @@
+"""Ex08: the Hungarian algorithm: the trusted tests of ``exercises/ex08_hungarian.ipynb``."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..spec import Exercise, Outcome, as_float_array, compare_arrays
+from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+
+def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
+    """Valid min(M, N) pairs whose total cost is scipy's optimum (trusted ``linear_sum_assignment``)."""
+    from scipy.optimize import linear_sum_assignment
+
+    r, c = linear_sum_assignment(cost)
+    best = float(cost[r, c].sum())
+    M, N = cost.shape
+    K = min(M, N)
+
+    def check(outcome: Outcome) -> tuple[float, str]:
+        if not outcome.ok:
+            return 0.0, outcome.error or "the call failed"
+        pairs = as_float_array(outcome.value)
+        if pairs is None or (pairs.size == 0 and K == 0):
+            return (1.0, "ok") if pairs is not None else (0.0, "the result is not an array of index pairs")
+        if pairs.ndim != 2 or pairs.shape != (K, 2):
+            return 0.0, f"expected {K} (row, col) pairs, shape ({K}, 2), got shape {pairs.shape}"
+        if not np.all(pairs == np.round(pairs)):
+            return 0.0, "indices must be integers"
+        rows = pairs[:, 0].astype(np.int64)
+        cols = pairs[:, 1].astype(np.int64)
+        if rows.min() < 0 or rows.max() >= M or cols.min() < 0 or cols.max() >= N:
+            return 0.0, "an index is out of range"
+        if len(set(rows.tolist())) != K or len(set(cols.tolist())) != K:
+            return 0.0, "a row or a column is used twice"
+        total = float(cost[rows, cols].sum())
+        if abs(total - best) <= rtol * max(1.0, abs(best)):
+            return 1.0, "ok"
+        return 0.0, f"a valid assignment but not a minimal one (total {total:.6g}, the minimum is {best:.6g})"
+
+    return check
+
+
+_EX08_C = np.array([[4.0, 1.0, 3.0], [2.0, 0.0, 5.0], [3.0, 2.0, 2.0]])
+_EX08_RECT = np.array([[10.0, 1.0, 7.0, 3.0], [2.0, 8.0, 9.0, 4.0]])
+
+
+@graded_test("small matrices: 3x3, 2x4, 4x2, 1x1", "test_small", 3.0, hidden=False)
+def _ex08_public(rng):
+    mats = [_EX08_C, _EX08_RECT, _EX08_RECT.T.copy(), np.array([[7.0]])]
+    return [("hungarian", (C,), {}, assignment_check(C)) for C in mats]
+
+
+@graded_test(
+    "random matrices 12x12 to 30x30, with ties, rectangular", "test_random", 7.0, hidden=True, timeout=10.0
+)
+def _ex08_hidden(rng):
+    mats = []
+    # diagonally dominant (greedy finds it too), then hard ones
+    # (12! = 4.8e8 permutations: every matrix is out of reach of brute force within the time limit)
+    n = 12
+    D = rng.uniform(5.0, 10.0, size=(n, n))
+    D[np.arange(n), rng.permutation(n)] = rng.uniform(0.0, 1.0, size=n)
+    mats.append(D)
+    mats.append(rng.uniform(0.0, 1.0, size=(13, 13)))
+    mats.append(rng.integers(0, 4, size=(12, 12)).astype(np.float64))  # many ties
+    mats.append(rng.normal(size=(11, 17)))  # negative costs, wide
+    mats.append(rng.integers(0, 3, size=(18, 13)).astype(np.float64))  # tall with ties
+    mats.append(np.outer(rng.uniform(1, 2, 14), rng.uniform(1, 2, 14)))  # rank one
+    mats.append(rng.uniform(0.0, 100.0, size=(30, 30)))
+    return [("hungarian", (C,), {}, assignment_check(C)) for C in mats]
+
+
+EXERCISE = Exercise(
+    id="ex08_hungarian",
+    title="The Hungarian algorithm",
+    notebook="ex08_hungarian.ipynb",
+    answer_cells=("hungarian",),
+    blocked=(
+        "flowtrack.association",
+        "flowtrack.tracking",
+        "flowtrack.metrics",
+        "scipy.optimize",
+        "scipy.sparse.csgraph",
+    ),
+    tests=(_ex08_public, _ex08_hidden),
+)
