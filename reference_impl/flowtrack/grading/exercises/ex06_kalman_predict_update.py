@@ -90,6 +90,6 @@ EXERCISE = Exercise(
     title="Kalman predict and update",
     notebook="ex06_kalman_predict_update.ipynb",
     answer_cells=("kf_predict", "kf_update"),
-    blocked=("flowtrack.kalman", "flowtrack.tracking", "flowtrack.particle", "flowtrack.bayes"),
+    blocked=("flowtrack.kalman", "flowtrack.batch_kalman", "flowtrack.tracking", "flowtrack.particle", "flowtrack.bayes"),
     tests=(_ex06_predict_public, _ex06_predict_hidden, _ex06_update_public, _ex06_update_hidden),
 )
