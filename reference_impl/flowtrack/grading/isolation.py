@@ -278,16 +278,20 @@ def mount_usage(pid: int, path: str) -> tuple[int, int] | None:
     return (st.f_blocks - st.f_bfree) * st.f_frsize, st.f_files - st.f_ffree
 
 
+_MAX_OPEN = 64  # directory descriptors remove_tree holds at once while it descends
+
+
 def remove_tree(path: Path) -> list[str]:
     """Delete the folder ``path`` and everything in it, however deep; returns the problems met.
 
     Iterative and descriptor-based, so neither the depth of the tree (a chain of thousands of
-    folders, paths far beyond ``PATH_MAX``) nor symlinks can defeat it: every folder below ``path``
-    is first moved up to be a direct child of ``path`` (``rename`` between two open directory
-    descriptors), so the tree is at most two levels deep while it is emptied; entries are unlinked
-    relative to their folder's descriptor and symlinks are removed, never followed. A folder the
-    student made unreadable is made accessible to its owner again (it is a real folder: checked with
-    ``lstat`` first). Call it only once the processes that could write there are gone.
+    folders, paths far beyond ``PATH_MAX``) nor symlinks can defeat it: it descends holding one
+    descriptor per level and works relative to them (``unlink``/``rmdir`` with ``dir_fd``, symlinks
+    removed, never followed); at :data:`_MAX_OPEN` levels the folders below are moved up to be
+    direct children of ``path`` (``rename`` between two open descriptors) and emptied from there
+    later, so the descriptors held stay bounded. A folder the student made unreadable is made
+    accessible to its owner again (through its descriptor, or after ``lstat`` showed a real folder).
+    Call it only once the processes that could write there are gone.
 
     Returns
     -------
@@ -303,12 +307,12 @@ def remove_tree(path: Path) -> list[str]:
         return [f"cannot open {path}: {exc.strerror}"]
     counter = itertools.count()
 
-    def open_dir(name: str) -> int:
+    def open_at(parent: int, name: str) -> int:
         try:
-            return os.open(name, _DIR_FLAGS, dir_fd=root)
+            return os.open(name, _DIR_FLAGS, dir_fd=parent)
         except PermissionError:
-            os.chmod(name, 0o700, dir_fd=root)  # a real folder (lstat-ed by the caller)
-            return os.open(name, _DIR_FLAGS, dir_fd=root)
+            os.chmod(name, 0o700, dir_fd=parent)  # a real folder: lstat-ed by the caller
+            return os.open(name, _DIR_FLAGS, dir_fd=parent)
 
     def fresh_name() -> str:
         while True:
@@ -317,6 +321,42 @@ def remove_tree(path: Path) -> list[str]:
                 os.lstat(name, dir_fd=root)
             except FileNotFoundError:
                 return name
+
+    def remove_dir(name: str, todo: list[str]) -> None:
+        """Empty and remove the folder ``name`` of ``root``, depth first with bounded descriptors."""
+        stack: list[list] = [[open_at(root, name), None, name]]  # [fd, subfolders left, name]
+        try:
+            while stack:
+                top = stack[-1]
+                fd = top[0]
+                if top[1] is None:
+                    try:
+                        os.fchmod(fd, 0o700)  # a real folder (opened with O_NOFOLLOW)
+                    except OSError:
+                        pass
+                    with os.scandir(fd) as it:
+                        entries = [(e.name, e.is_dir(follow_symlinks=False)) for e in it]
+                    top[1] = []
+                    for child, is_dir in entries:
+                        if not is_dir:
+                            os.unlink(child, dir_fd=fd)
+                        elif len(stack) >= _MAX_OPEN:  # deep enough: continue from the top later
+                            moved = fresh_name()
+                            os.rename(child, moved, src_dir_fd=fd, dst_dir_fd=root)
+                            todo.append(moved)
+                        else:
+                            top[1].append(child)
+                if top[1]:
+                    child = top[1].pop()
+                    stack.append([open_at(fd, child), None, child])
+                    continue
+                stack.pop()
+                os.close(fd)
+                parent = stack[-1][0] if stack else root
+                os.rmdir(top[2], dir_fd=parent)
+        finally:
+            for entry in stack:
+                os.close(entry[0])
 
     try:
         try:
@@ -329,27 +369,10 @@ def remove_tree(path: Path) -> list[str]:
             name = todo.pop()
             try:
                 st = os.lstat(name, dir_fd=root)
-                if not stat.S_ISDIR(st.st_mode):
+                if stat.S_ISDIR(st.st_mode):
+                    remove_dir(name, todo)
+                else:
                     os.unlink(name, dir_fd=root)
-                    continue
-                fd = open_dir(name)
-                try:
-                    try:  # a real folder (opened with O_NOFOLLOW): its entries can then be removed
-                        os.fchmod(fd, 0o700)
-                    except OSError:
-                        pass
-                    with os.scandir(fd) as it:
-                        children = [(e.name, e.is_dir(follow_symlinks=False)) for e in it]
-                    for child, is_dir in children:
-                        if is_dir:
-                            moved = fresh_name()
-                            os.rename(child, moved, src_dir_fd=fd, dst_dir_fd=root)
-                            todo.append(moved)
-                        else:
-                            os.unlink(child, dir_fd=fd)
-                finally:
-                    os.close(fd)
-                os.rmdir(name, dir_fd=root)
             except OSError as exc:
                 problems.append(f"{name}: {exc.strerror or exc}")
                 if len(problems) > 20:
