@@ -209,6 +209,24 @@ def locate_module(name: str, roots: Sequence[str]) -> Path | None:
 
 
 
+def _site_state() -> tuple[int, ...]:
+    """mtimes of the site-packages folders: an install or removal changes them (cache key)."""
+    out = []
+    for d in site_dirs():
+        try:
+            out.append(os.stat(d).st_mtime_ns)
+        except OSError:
+            out.append(0)
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=4)
+def _distributions(state: tuple[int, ...]) -> dict[str, list[str]]:
+    import importlib.metadata as md
+
+    return md.packages_distributions()
+
+
 def allowed_packages(allowed: Sequence[str]) -> tuple[str, ...]:
     """The top-level packages an allowlist needs: those it names (``scipy.linalg`` -> ``scipy``) and,
     through their distributions' requirements (extras left out), what they import themselves
@@ -217,10 +235,15 @@ def allowed_packages(allowed: Sequence[str]) -> tuple[str, ...]:
     >>> allowed_packages(["numpy", "scipy.linalg"])
     ('numpy', 'scipy')
     """
+    return _allowed_packages(tuple(allowed), _site_state())
+
+
+@functools.lru_cache(maxsize=64)
+def _allowed_packages(allowed: tuple[str, ...], state: tuple[int, ...]) -> tuple[str, ...]:
     import importlib.metadata as md
 
     tops = {a.split(".")[0] for a in allowed}
-    by_top = md.packages_distributions()
+    by_top = _distributions(state)
     todo = [d for t in tops for d in by_top.get(t, [])]
     seen: set[str] = set()
     while todo:
@@ -246,9 +269,14 @@ def package_entries(site: str, packages: Sequence[str]) -> list[str]:
     """The entries of the site-packages folder ``site`` that the top-level ``packages`` consist of:
     the package folders or modules, their distributions' bundled libraries (``numpy.libs``,
     ``scipy.libs``) and other top-level files those distributions installed there."""
+    return list(_package_entries(str(site), tuple(packages), _site_state()))
+
+
+@functools.lru_cache(maxsize=64)
+def _package_entries(site: str, packages: tuple[str, ...], state: tuple[int, ...]) -> tuple[str, ...]:
     import importlib.metadata as md
 
-    by_top = md.packages_distributions()
+    by_top = _distributions(state)
     root = Path(site).resolve()
     names: set[str] = set()
     for top in packages:
@@ -269,4 +297,4 @@ def package_entries(site: str, packages: Sequence[str]) -> list[str]:
                     first = p.relative_to(root).parts[0]
                     if not first.endswith((".dist-info", ".egg-info")) and first != "__pycache__":
                         names.add(first)
-    return sorted(n for n in names if (root / n).exists())
+    return tuple(sorted(n for n in names if (root / n).exists()))
