@@ -85,6 +85,7 @@ def main():
     os.close(int(sys.argv[1]))
     os.set_inheritable(reply_fd, False)
     init = _read_msg()
+    stdlib_paths = list(sys.path[1:])  # -I -S: the runner's folder, then only the standard library
     for p in init["paths"]:
         if p not in sys.path:
             sys.path.append(p)
@@ -152,12 +153,33 @@ def main():
         return x
 
     blocked = tuple(init.get("blocked", ()))
+    allowed = init.get("allowed")
+    allowed = None if allowed is None else frozenset([*allowed, "__main__"]) | sys.stdlib_module_names
+    allowed_text = init.get("allowed_text", "")
+
+    stdlib_found = {}
+
+    def in_stdlib(top):
+        """True for a module of the standard library's folders (``_sysconfigdata_*`` is not listed in
+        ``sys.stdlib_module_names``)."""
+        if top not in stdlib_found:
+            from importlib.machinery import PathFinder
+
+            stdlib_found[top] = PathFinder.find_spec(top, stdlib_paths) is not None
+        return stdlib_found[top]
 
     def refuse_blocked(name):
-        """Raise ImportError when module ``name`` is a blocked module or inside one."""
+        """Raise ImportError when module ``name`` is a blocked module or inside one, or (with an
+        allowlist) in a package that is neither in the standard library nor allowed."""
         for b in blocked:
             if name == b or name.startswith(b + "."):
                 raise ImportError(f"{b} is not available in this exercise")
+        top = name.partition(".")[0]
+        if allowed is not None and top not in allowed and not in_stdlib(top):
+            raise ImportError(
+                f"{top} is not available in this exercise (you may import: {allowed_text}, "
+                "and the standard library)"
+            )
 
     class _Blocker:
         """sys.meta_path entry refusing blocked modules (a second line behind the file system)."""
@@ -168,10 +190,8 @@ def main():
             return None
 
     sys.meta_path.insert(0, _Blocker)
-    for name in list(sys.modules):
-        try:
-            refuse_blocked(name)
-        except ImportError:
+    for name in list(sys.modules):  # already imported (numpy's own imports): blocked ones go
+        if any(name == b or name.startswith(b + ".") for b in blocked):
             del sys.modules[name]
 
     deny = tuple(os.path.realpath(p) for p in init.get("deny_paths", ()))

@@ -69,6 +69,11 @@ def check_notebook(notebook: str | os.PathLike, *, stream: TextIO | None = None)
     hidden = sum(float(t.points) for t in exercise.tests if t.hidden)
     print(format_report(result, hidden), file=stream)
     if result.isolation.startswith("fallback"):
-        print(f"note: sandbox isolation is {result.isolation!r}", file=stream)
+        why = result.isolation.removeprefix("fallback: ")
+        print(
+            f"warning: bubblewrap is not available ({why}): your code ran in the fallback sandbox; "
+            "the scores are the same, the isolation is weaker",
+            file=stream,
+        )
     ok = bool(result.tests) and all(t.passed for t in result.tests) and not result.problems
     return 0 if ok else 1

@@ -61,19 +61,25 @@ def _add_secret_option(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
-    from .grade import grade_class
+    from .grade import UnsafeSandbox, grade_class
 
     secret = _secret(args.secret_file)
-    rows = grade_class(
-        args.submissions,
-        args.out,
-        jobs=args.jobs,
-        force=args.force,
-        hidden_visibility=args.hidden_visibility,
-        assignment=args.assignment,
-        progress=not args.no_progress,
-        secret=secret,
-    )
+    try:
+        rows = grade_class(
+            args.submissions,
+            args.out,
+            jobs=args.jobs,
+            force=args.force,
+            hidden_visibility=args.hidden_visibility,
+            assignment=args.assignment,
+            progress=not args.no_progress,
+            secret=secret,
+            hidden_paths=[args.secret_file] if args.secret_file else [],
+            allow_unsafe_sandbox=args.allow_unsafe_sandbox,
+        )
+    except UnsafeSandbox as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     graded = sum(1 for r in rows if not r.get("skipped") and "error" not in r)
     skipped = sum(1 for r in rows if r.get("skipped"))
     errors = sum(1 for r in rows if "error" in r)
@@ -145,6 +151,13 @@ def register(subparsers) -> None:
     )
     p.add_argument("--assignment", default="flowtrack", help="assignment name in the gradebook")
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    p.add_argument(
+        "--allow-unsafe-sandbox",
+        action="store_true",
+        help="grade even where bubblewrap cannot run: student code then runs in the fallback sandbox, "
+        "whose in-process guard a determined student can get around (other students' work, the output "
+        "folder and the seed key become readable)",
+    )
     _add_secret_option(p)
     p.set_defaults(func=_cmd_grade)
 

@@ -53,6 +53,8 @@ from .spec import Exercise, GradedTest, Outcome, public_seed, secret_id, student
 __all__ = [
     "ExerciseResult",
     "FORMAT",
+    "RESERVED_NAMES",
+    "UnsafeSandbox",
     "TestResult",
     "exercises_hash",
     "grade_class",
@@ -66,6 +68,16 @@ __all__ = [
 ]
 
 FORMAT = "flowtrack-results/1"
+# What grade_class writes into its output folder beside the student folders: a student folder of one
+# of these names is refused (it would turn the grader's own output into a folder).
+RESERVED_NAMES = frozenset(
+    {"grades.csv", "gradebook.db", "gradebook.db-journal", "gradebook.db-wal", "gradebook.db-shm",
+     "misconceptions.csv"}
+)
+
+
+class UnsafeSandbox(RuntimeError):
+    """``flowtrack grade`` without bubblewrap, and the fallback was not allowed explicitly."""
 MAX_MESSAGE = 2000
 _STUDENT_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.@+\-]{0,127}$")
 
@@ -139,19 +151,23 @@ def _extract(notebook: Path, grade_ids: Sequence[str]) -> tuple[list[tuple[str, 
     A notebook that is missing or not JSON breaks every cell; a single missing cell breaks only the
     functions it defines (the others are still graded).
     """
-    from .notebook import extract_cells
+    from .notebook import read_notebook, select_cells
 
     if not notebook.is_file():
         return [], [f"notebook not submitted: {notebook.name}"]
     try:
-        return list(extract_cells(notebook, list(grade_ids))), []
+        raw = read_notebook(notebook)  # size-capped, parsed once
+    except (ValueError, OSError, UnicodeDecodeError) as exc:
+        return [], [_clip_message(f"{type(exc).__name__}: {exc}")]
+    try:
+        return list(select_cells(raw, list(grade_ids), notebook.name)), []
     except (ValueError, OSError, UnicodeDecodeError) as exc:
         first = _clip_message(f"{type(exc).__name__}: {exc}")
     cells: list[tuple[str, str]] = []
     problems: list[str] = []
     for gid in grade_ids:
         try:
-            cells += list(extract_cells(notebook, [gid]))
+            cells += list(select_cells(raw, [gid], notebook.name))
         except (ValueError, OSError, UnicodeDecodeError) as exc:
             problems.append(_clip_message(f"cell {gid!r}: {exc}"))
     if not cells:
@@ -168,6 +184,7 @@ def run_exercise(
     limits: Any = None,
     sandbox_factory: Callable[..., Any] | None = None,
     secret: bytes | None = None,
+    hidden_paths: Sequence[str | os.PathLike] = (),
 ) -> ExerciseResult:
     """Grade one notebook against one exercise.
 
@@ -187,6 +204,9 @@ def run_exercise(
         ``Sandbox``-like class (tests inject fakes); default :class:`flowtrack.grading.sandbox.Sandbox`.
     secret : bytes or None
         The instructor's seed key for the hidden tests (:func:`~flowtrack.grading.spec.read_secret`).
+    hidden_paths : sequence of path
+        What the sandbox's fallback must refuse to open (the class's submissions, the output folder,
+        the key file); bubblewrap shows none of them anyway.
 
     Returns
     -------
@@ -206,6 +226,10 @@ def run_exercise(
     if sandbox_factory is None:
         from .sandbox import Sandbox as sandbox_factory
     kwargs: dict[str, Any] = {"blocked": tuple(exercise.blocked)}
+    if exercise.allowed:
+        kwargs["allowed"] = tuple(exercise.allowed)
+    if hidden_paths:
+        kwargs["hidden_paths"] = tuple(hidden_paths)
     if limits is not None:
         kwargs["limits"] = limits
     # Every public test runs before any hidden one: the child keeps state between tests, so a
@@ -284,6 +308,7 @@ def exercises_hash(exercises: Sequence[Exercise]) -> str:
     files: set[str] = set()
     for ex in exercises:
         desc = [ex.id, ex.notebook, list(ex.answer_cells), list(ex.blocked)]
+        desc += [list(ex.allowed)] if ex.allowed else []
         desc += [[t.name, t.grade_id, float(t.points), bool(t.hidden), float(t.timeout)] for t in ex.tests]
         h.update(json.dumps(desc).encode())
         for t in ex.tests:
@@ -304,17 +329,25 @@ def _submission_hash(notebooks: dict[str, Path]) -> str:
     h = hashlib.sha256()
     for ex_id, p in notebooks.items():
         h.update(ex_id.encode() + b"\0")
-        h.update(hashlib.sha256(p.read_bytes()).digest() if p.is_file() else b"<missing>")
+        if p.is_file():
+            with open(p, "rb") as fh:
+                h.update(hashlib.file_digest(fh, "sha256").digest())  # streamed: any size
+        else:
+            h.update(b"<missing>")
     return h.hexdigest()
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and ``os.replace`` (all or nothing)."""
+    """Write ``text`` to ``path`` through a temporary file and ``os.replace`` (all or nothing).
+
+    UTF-8 with ``errors="backslashreplace"``: a lone surrogate in a student's error message is
+    written as ``\\ud800`` instead of failing the write.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        with os.fdopen(fd, "w", encoding="utf-8", errors="backslashreplace") as fh:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
@@ -389,9 +422,17 @@ def results_json(
         "output": "\n".join(lines),
         "visibility": "visible",
         "stdout_visibility": "hidden",
+        # outputs hold student text (error messages): shown as plain text, never as Markdown or HTML
+        "output_format": "text",
+        "test_output_format": "text",
         "tests": tests,
         "extra_data": {"flowtrack": info},
     }
+
+
+def _fence_safe(text: str) -> str:
+    """``text`` for a fenced ``text`` block: a run of backticks cannot close the fence."""
+    return str(text).replace("```", "'''")
 
 
 def feedback_markdown(student: str, r: ExerciseResult) -> str:
@@ -404,8 +445,10 @@ def feedback_markdown(student: str, r: ExerciseResult) -> str:
         f"**Score: {_round(r.score):g} / {_round(r.max_score):g}**",
         "",
     ]
-    if r.problems:
-        out += ["## Problems with the submission", ""] + [f"- {p}" for p in r.problems] + [""]
+    if r.problems:  # fenced like the public tests' messages: student text never renders as Markdown
+        out += ["## Problems with the submission", ""]
+        for p in r.problems:
+            out += ["```text", _fence_safe(p), "```", ""]
     out += ["## Tests", "", "| test | kind | score | result |", "|---|---|---|---|"]
     for t in r.tests:
         kind = "hidden" if t.hidden else "public"
@@ -415,7 +458,7 @@ def feedback_markdown(student: str, r: ExerciseResult) -> str:
     if public:
         out += ["", "## Public tests in detail", ""]
         for t in public:
-            out += [f"### {t.name}", "", "```text", t.message.replace("```", "'''"), "```", ""]
+            out += [f"### {t.name}", "", "```text", _fence_safe(t.message), "```", ""]
     out += ["", "Hidden tests use other inputs and are reported by name and score only.", ""]
     return "\n".join(out)
 
@@ -443,8 +486,13 @@ def grade_student(
     sandbox_factory: Callable[..., Any] | None = None,
     ex_hash: str | None = None,
     secret: bytes | None = None,
+    hidden_paths: Sequence[str | os.PathLike] = (),
 ) -> dict:
     """Grade one student's folder; write ``out/<student>/feedback/*`` then ``results.json``.
+
+    An earlier ``results.json`` that is not kept is removed before grading starts, so a student
+    whose grading fails halfway has none (never a stale one); ``hidden_paths`` go to
+    :func:`run_exercise`.
 
     ``secret`` keys the hidden tests' seeds (see :func:`run_exercise`); results made with another
     key (or none) are not kept on a re-run.
@@ -474,11 +522,13 @@ def grade_student(
                     "exercises": {k: v["score"] for k, v in info["exercises"].items()},
                     "isolation": info.get("isolation", ""),
                 }
+    results_path.unlink(missing_ok=True)
     results = []
     for ex in exercises:
         try:
             r = run_exercise(
-                ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory, secret=secret
+                ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory, secret=secret,
+                hidden_paths=hidden_paths,
             )
         except Exception as exc:  # one broken exercise must not lose the others
             r = ExerciseResult(ex.id, ex.title, ex.notebook)
@@ -537,7 +587,7 @@ def list_students(submissions: str | os.PathLike) -> list[str]:
 
 def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_factory=None) -> dict:
     """Grade one task of :func:`grade_class`; ``exercises`` default to the registry's by id."""
-    student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids, secret = args
+    student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids, secret, hidden = args
     try:
         if exercises is None:
             from .exercises import get_exercise
@@ -545,9 +595,13 @@ def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_fa
             exercises = [get_exercise(i) for i in exercise_ids]
         return grade_student(
             student, student_dir, exercises, out, force=force, hidden_visibility=hidden_visibility,
-            ex_hash=ex_hash, sandbox_factory=sandbox_factory, secret=secret,
+            ex_hash=ex_hash, sandbox_factory=sandbox_factory, secret=secret, hidden_paths=hidden,
         )
     except Exception as exc:  # reported in the summary, the class goes on
+        try:  # no results.json of an earlier run may stand for this one
+            (Path(out) / student / "results.json").unlink(missing_ok=True)
+        except OSError:
+            pass
         return {"student": student, "error": f"{type(exc).__name__}: {exc}"}
 
 
@@ -578,8 +632,17 @@ def grade_class(
     log: Callable[[str], None] | None = None,
     sandbox_factory: Callable[..., Any] | None = None,
     secret: bytes | None = None,
+    hidden_paths: Sequence[str | os.PathLike] = (),
+    allow_unsafe_sandbox: bool = False,
 ) -> list[dict]:
     """Grade every student folder of ``submissions`` into ``out`` (see the module docstring).
+
+    Student code runs under bubblewrap; where it cannot (:func:`~flowtrack.grading.isolation.choose_mode`)
+    this raises :class:`UnsafeSandbox` unless ``allow_unsafe_sandbox``: the fallback's in-process
+    guard can be got around, so a student could read the class's submissions, the output folder or
+    the key. The fallback still refuses ``submissions``, ``out`` and ``hidden_paths`` (e.g. the key
+    file) to the code it runs. A student folder named like one of the grader's own outputs
+    (:data:`RESERVED_NAMES`) is not graded and reported as an error.
 
     ``secret`` (the instructor's key, :func:`~flowtrack.grading.spec.read_secret`) seeds the hidden
     tests; use the same one for every run of a class.
@@ -597,17 +660,32 @@ def grade_class(
     from .exercises import EXERCISES
 
     exercises = tuple(EXERCISES if exercises is None else exercises)
+    hidden = tuple(str(Path(p).resolve()) for p in (submissions, out, *hidden_paths))
     # Workers look exercises up by id; exercises not in the registry (tests' fakes) grade in-process.
     registry = {ex.id: ex for ex in EXERCISES}
     custom = sandbox_factory is not None or any(registry.get(ex.id) is not ex for ex in exercises)
     students = list_students(submissions)
+    if sandbox_factory is None:
+        from .isolation import choose_mode
+
+        mode, why = choose_mode()
+        if mode != "bwrap" and not allow_unsafe_sandbox:
+            raise UnsafeSandbox(
+                f"bubblewrap cannot isolate student code here ({why}). The fallback sandbox runs it as a "
+                "plain process behind an in-process audit hook that a determined student can get around "
+                "(e.g. with ctypes): they could then read other students' submissions, the output folder "
+                "and the seed key, and the machine's other files. Install bubblewrap (apt-get install "
+                "bubblewrap) and allow unprivileged user namespaces, or pass --allow-unsafe-sandbox "
+                "(allow_unsafe_sandbox=True) to grade anyway."
+            )
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ex_hash = exercises_hash(exercises)
+    reserved = [s for s in students if s.lower() in RESERVED_NAMES]
     tasks = [
         (s, str(Path(submissions) / s), str(out), force, hidden_visibility, ex_hash,
-         tuple(ex.id for ex in exercises), secret)
-        for s in students
+         tuple(ex.id for ex in exercises), secret, hidden)
+        for s in students if s not in reserved
     ]
     summaries: dict[str, dict] = {}
     bar = tqdm(total=len(tasks), desc="grading", unit="student", disable=not progress)
@@ -640,6 +718,9 @@ def grade_class(
             summaries[task[0]] = {"student": task[0], "error": "a grading worker died"}
             bar.update(1)
     bar.close()
+    for s in reserved:
+        summaries[s] = {"student": s, "error": f"the folder name {s!r} is reserved for the grader's outputs "
+                        "(rename the student's folder)"}
     rows = [summaries[s] for s in students]
     isolations = {r.get("isolation", "") for r in rows}
     for iso in sorted(i for i in isolations if i.startswith("fallback")):

@@ -14,9 +14,27 @@ import stat
 import subprocess
 import time
 from pathlib import Path
+from typing import NamedTuple
 
-__all__ = ["SandboxUnavailable", "bwrap_base", "bwrap_status", "choose_mode", "drop_to", "kill_uid",
-           "remove_tree", "sandbox_uid", "signal_name", "tree_usage", "uid_has_processes", "user_tasks"]
+__all__ = [
+    "MAX_TREE_DEPTH",
+    "SandboxUnavailable",
+    "TreeUsage",
+    "bwrap_base",
+    "bwrap_status",
+    "choose_mode",
+    "descendants",
+    "drop_to",
+    "kill_uid",
+    "mount_usage",
+    "remove_tree",
+    "sandbox_uid",
+    "signal_name",
+    "tree_usage",
+    "uid_has_processes",
+    "unlinked_bytes",
+    "user_tasks",
+]
 
 _UID_BASE = 1_600_000_000
 _uid_counter = itertools.count()
@@ -147,44 +165,226 @@ def uid_has_processes(uid: int) -> bool:
     return False
 
 
-def tree_usage(root: Path, max_entries: int) -> tuple[int, int]:
-    """``(bytes allocated, entries)`` under ``root`` without following symlinks; stops counting
-    entries once ``max_entries`` is exceeded."""
-    size, entries, stack = 0, 0, [str(root)]
-    while stack and entries <= max_entries:
+_DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+# Deeper folders than this in a student's directory count as a violation of the disk limit: the meter
+# holds one descriptor per level, and no exercise needs more than a few levels.
+MAX_TREE_DEPTH = 64
+
+
+class TreeUsage(NamedTuple):
+    """What :func:`tree_usage` measured: bytes allocated, entries, and why it could not measure all
+    (``""`` when it could)."""
+
+    size: int
+    entries: int
+    problem: str
+
+
+def tree_usage(root: Path, max_entries: int, max_depth: int = MAX_TREE_DEPTH) -> TreeUsage:
+    """Bytes allocated and entries under ``root``, walked with directory descriptors.
+
+    Each folder is opened relative to its parent's descriptor (``O_NOFOLLOW``), so no path is ever
+    longer than one name: a chain of long names beyond ``PATH_MAX`` is measured like any other. A
+    folder that cannot be opened or listed, or one deeper than ``max_depth``, is reported in
+    ``problem`` (the caller treats it as a violation: what cannot be measured is not allowed).
+    Stops once ``max_entries`` is exceeded.
+    """
+    size = entries = 0
+    try:
+        top = os.open(root, _DIR_FLAGS)
+    except OSError as exc:
+        return TreeUsage(0, 0, f"cannot open the sandbox's directory ({exc.strerror})")
+    stack = [(top, 0)]
+    problem = ""
+    try:
+        while stack and entries <= max_entries and not problem:
+            fd, depth = stack.pop()
+            try:
+                with os.scandir(fd) as it:
+                    names = []
+                    for e in it:
+                        entries += 1
+                        st = e.stat(follow_symlinks=False)
+                        size += st.st_blocks * 512
+                        if stat.S_ISDIR(st.st_mode):
+                            names.append(e.name)
+                        if entries > max_entries:
+                            break
+                if names and depth + 1 > max_depth:
+                    problem = f"created folders nested deeper than {max_depth} levels"
+                    continue
+                for name in names:
+                    stack.append((os.open(name, _DIR_FLAGS, dir_fd=fd), depth + 1))
+            except OSError as exc:
+                problem = f"made part of its directory unreadable ({exc.strerror})"
+            finally:
+                os.close(fd)
+    finally:
+        for fd, _ in stack:
+            os.close(fd)
+    return TreeUsage(size, entries, problem)
+
+
+def descendants(pid: int) -> list[int]:
+    """``pid`` and every process below it (from ``/proc/<pid>/task/*/children``, iteratively)."""
+    out, stack, seen = [], [pid], set()
+    while stack:
+        p = stack.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        out.append(p)
+        for task in Path(f"/proc/{p}/task").glob("*"):
+            try:
+                stack += [int(c) for c in (task / "children").read_text().split()]
+            except (OSError, ValueError):
+                continue
+    return out
+
+
+def unlinked_bytes(pids: list[int]) -> int:
+    """Bytes held by deleted (unlinked) files that the processes ``pids`` still keep open.
+
+    Such files are in no folder, so no walk finds them, but they occupy the disk (or, for memfd,
+    RAM) until closed. Read through ``/proc/<pid>/fd``; processes or descriptors that vanish meanwhile
+    are skipped.
+    """
+    total = 0
+    seen: set[tuple[int, int]] = set()
+    for pid in pids:
         try:
-            it = os.scandir(stack.pop())
+            fds = os.listdir(f"/proc/{pid}/fd")
         except OSError:
             continue
-        with it:
-            for e in it:
-                entries += 1
-                try:
-                    st = e.stat(follow_symlinks=False)
-                except OSError:
-                    continue
-                size += st.st_blocks * 512
-                if stat.S_ISDIR(st.st_mode):
-                    stack.append(e.path)
-                if entries > max_entries:
-                    break
-    return size, entries
+        for fd in fds:
+            try:
+                st = os.stat(f"/proc/{pid}/fd/{fd}")
+            except OSError:
+                continue
+            if stat.S_ISREG(st.st_mode) and st.st_nlink == 0 and (st.st_dev, st.st_ino) not in seen:
+                seen.add((st.st_dev, st.st_ino))
+                total += st.st_blocks * 512
+    return total
 
 
-def remove_tree(path: Path) -> None:
-    def onerror(func, p, exc_info):  # a student may have chmod-ed things
+def mount_usage(pid: int, path: str) -> tuple[int, int] | None:
+    """``(bytes, inodes)`` in use on the filesystem mounted at ``path`` in the mount namespace of
+    ``pid`` (``statvfs`` through ``/proc/<pid>/root``); None when it cannot be read (process gone,
+    not yet set up, or not ours to inspect)."""
+    try:
+        st = os.statvfs(f"/proc/{pid}/root{path}")
+    except OSError:
+        return None
+    return (st.f_blocks - st.f_bfree) * st.f_frsize, st.f_files - st.f_ffree
+
+
+_MAX_OPEN = 64  # directory descriptors remove_tree holds at once while it descends
+
+
+def remove_tree(path: Path) -> list[str]:
+    """Delete the folder ``path`` and everything in it, however deep; returns the problems met.
+
+    Iterative and descriptor-based, so neither the depth of the tree (a chain of thousands of
+    folders, paths far beyond ``PATH_MAX``) nor symlinks can defeat it: it descends holding one
+    descriptor per level and works relative to them (``unlink``/``rmdir`` with ``dir_fd``, symlinks
+    removed, never followed); at :data:`_MAX_OPEN` levels the folders below are moved up to be
+    direct children of ``path`` (``rename`` between two open descriptors) and emptied from there
+    later, so the descriptors held stay bounded. A folder the student made unreadable is made
+    accessible to its owner again (through its descriptor, or after ``lstat`` showed a real folder).
+    Call it only once the processes that could write there are gone.
+
+    Returns
+    -------
+    list of str
+        One message per entry that could not be removed (empty when ``path`` is gone).
+    """
+    problems: list[str] = []
+    try:
+        root = os.open(path, _DIR_FLAGS)
+    except FileNotFoundError:
+        return problems
+    except OSError as exc:
+        return [f"cannot open {path}: {exc.strerror}"]
+    counter = itertools.count()
+
+    def open_at(parent: int, name: str) -> int:
         try:
-            # Never chmod through a symlink the student planted (it may point at a grader's file);
-            # only real directories of the tree are made writable again.
-            parent = os.path.dirname(p)
-            if not os.path.islink(parent) and os.path.isdir(parent):
-                os.chmod(parent, 0o700)
-            if not os.path.islink(p) and os.path.isdir(p):
-                os.chmod(p, 0o700)
-            func(p)
+            return os.open(name, _DIR_FLAGS, dir_fd=parent)
+        except PermissionError:
+            os.chmod(name, 0o700, dir_fd=parent)  # a real folder: lstat-ed by the caller
+            return os.open(name, _DIR_FLAGS, dir_fd=parent)
+
+    def fresh_name() -> str:
+        while True:
+            name = f".flowtrack-rm-{next(counter)}"
+            try:
+                os.lstat(name, dir_fd=root)
+            except FileNotFoundError:
+                return name
+
+    def remove_dir(name: str, todo: list[str]) -> None:
+        """Empty and remove the folder ``name`` of ``root``, depth first with bounded descriptors."""
+        stack: list[list] = [[open_at(root, name), None, name]]  # [fd, subfolders left, name]
+        try:
+            while stack:
+                top = stack[-1]
+                fd = top[0]
+                if top[1] is None:
+                    try:
+                        os.fchmod(fd, 0o700)  # a real folder (opened with O_NOFOLLOW)
+                    except OSError:
+                        pass
+                    with os.scandir(fd) as it:
+                        entries = [(e.name, e.is_dir(follow_symlinks=False)) for e in it]
+                    top[1] = []
+                    for child, is_dir in entries:
+                        if not is_dir:
+                            os.unlink(child, dir_fd=fd)
+                        elif len(stack) >= _MAX_OPEN:  # deep enough: continue from the top later
+                            moved = fresh_name()
+                            os.rename(child, moved, src_dir_fd=fd, dst_dir_fd=root)
+                            todo.append(moved)
+                        else:
+                            top[1].append(child)
+                if top[1]:
+                    child = top[1].pop()
+                    stack.append([open_at(fd, child), None, child])
+                    continue
+                stack.pop()
+                os.close(fd)
+                parent = stack[-1][0] if stack else root
+                os.rmdir(top[2], dir_fd=parent)
+        finally:
+            for entry in stack:
+                os.close(entry[0])
+
+    try:
+        try:
+            os.fchmod(root, 0o700)
         except OSError:
             pass
-
-    shutil.rmtree(path, onerror=onerror)
-    if path.exists():
-        shutil.rmtree(path, ignore_errors=True)
+        with os.scandir(root) as it:
+            todo = [e.name for e in it]
+        while todo:
+            name = todo.pop()
+            try:
+                st = os.lstat(name, dir_fd=root)
+                if stat.S_ISDIR(st.st_mode):
+                    remove_dir(name, todo)
+                else:
+                    os.unlink(name, dir_fd=root)
+            except OSError as exc:
+                problems.append(f"{name}: {exc.strerror or exc}")
+                if len(problems) > 20:
+                    problems.append("... (more entries could not be removed)")
+                    break
+    except OSError as exc:
+        problems.append(f"{path}: {exc.strerror or exc}")
+    finally:
+        os.close(root)
+    if not problems:
+        try:
+            os.rmdir(path)
+        except OSError as exc:
+            problems.append(f"{path}: {exc.strerror or exc}")
+    return problems

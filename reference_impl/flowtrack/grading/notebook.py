@@ -7,10 +7,16 @@ cells. The text is returned as data; nothing here imports, compiles or runs it.
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["NotebookError", "extract_cells"]
+__all__ = ["MAX_NOTEBOOK_BYTES", "NotebookError", "extract_cells", "max_notebook_bytes", "read_notebook",
+           "select_cells"]
+
+
+# A notebook of the ten exercises is some 20 kB; outputs with figures make a few hundred kB.
+MAX_NOTEBOOK_BYTES = 4 << 20
 
 
 class NotebookError(ValueError):
@@ -28,7 +34,9 @@ def _source(cell: dict) -> str:
     return src
 
 
-def extract_cells(nb_path: str | Path, grade_ids: Sequence[str]) -> list[tuple[str, str]]:
+def extract_cells(
+    nb_path: str | Path, grade_ids: Sequence[str], *, max_bytes: int | None = None
+) -> list[tuple[str, str]]:
     """Return ``(grade_id, source)`` of the requested code cells, in notebook order.
 
     Parameters
@@ -38,6 +46,8 @@ def extract_cells(nb_path: str | Path, grade_ids: Sequence[str]) -> list[tuple[s
     grade_ids : sequence of str
         The nbgrader ``grade_id`` values to extract. When a notebook holds the same id twice, the
         first cell wins.
+    max_bytes : int, optional
+        Largest notebook read (default :func:`max_notebook_bytes`).
 
     Returns
     -------
@@ -47,8 +57,8 @@ def extract_cells(nb_path: str | Path, grade_ids: Sequence[str]) -> list[tuple[s
     Raises
     ------
     NotebookError
-        The file is not JSON, not a notebook, a requested id is missing, or names a cell that is not
-        a code cell.
+        The file is larger than ``max_bytes``, not JSON, not a notebook, a requested id is missing,
+        or names a cell that is not a code cell.
     TypeError
         ``grade_ids`` is a string or holds non-strings.
 
@@ -66,41 +76,69 @@ def extract_cells(nb_path: str | Path, grade_ids: Sequence[str]) -> list[tuple[s
     """
     if isinstance(grade_ids, str | bytes) or not all(isinstance(g, str) for g in grade_ids):
         raise TypeError("grade_ids must be a sequence of str (nbgrader grade ids)")
-    path = Path(nb_path)
+    return select_cells(read_notebook(nb_path, max_bytes=max_bytes), grade_ids, Path(nb_path).name)
+
+
+def max_notebook_bytes() -> int:
+    """The size cap of a notebook: ``$FLOWTRACK_MAX_NOTEBOOK_BYTES`` if set, else
+    :data:`MAX_NOTEBOOK_BYTES`."""
+    value = os.environ.get("FLOWTRACK_MAX_NOTEBOOK_BYTES", "").strip()
+    if not value:
+        return MAX_NOTEBOOK_BYTES
     try:
-        raw = path.read_bytes()
+        n = int(value)
+    except ValueError:
+        n = 0
+    if n <= 0:
+        raise ValueError(f"FLOWTRACK_MAX_NOTEBOOK_BYTES must be a positive number of bytes, got {value!r}")
+    return n
+
+
+def read_notebook(nb_path: str | Path, *, max_bytes: int | None = None) -> list:
+    """The raw cell dicts of a notebook (parsed once, with :func:`json.loads`; never more than
+    ``max_bytes`` read: a larger file is refused before it is parsed)."""
+    path = Path(nb_path)
+    limit = max_notebook_bytes() if max_bytes is None else int(max_bytes)
+    try:
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            raw = fh.read(limit + 1) if size <= limit else b""
     except OSError as exc:
         raise NotebookError(f"cannot read the notebook {path.name}: {exc.strerror or exc}") from None
+    if size > limit or len(raw) > limit:
+        raise NotebookError(
+            f"{path.name} is {max(size, len(raw))} bytes, more than a notebook may have ({limit} bytes; "
+            "clear its outputs)"
+        )
     try:
         data = json.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, ValueError, RecursionError):
         raise NotebookError(f"{path.name} is not a notebook: it is not valid JSON") from None
     if not isinstance(data, dict) or not isinstance(data.get("cells"), list):
         raise NotebookError(f"{path.name} is not a notebook: it has no list of cells")
-    try:
-        import nbformat
+    return data["cells"]
 
-        nb = nbformat.from_dict(data)  # structure only; nbformat never executes anything
-        cells = nb.cells
-    except Exception:  # pragma: no cover - nbformat missing or odd input: use the raw dicts
-        cells = data["cells"]
+
+def select_cells(cells: list, grade_ids: Sequence[str], name: str = "the notebook") -> list[tuple[str, str]]:
+    """``(grade_id, source)`` of the requested code cells among the raw ``cells`` (see
+    :func:`extract_cells`, whose errors it raises; ``name`` is the notebook's name in them)."""
     wanted = set(grade_ids)
     found: dict[str, tuple[int, str]] = {}
     for index, cell in enumerate(cells):
         if not isinstance(cell, dict):
-            raise NotebookError(f"{path.name} is not a notebook: cell {index} is not an object")
+            raise NotebookError(f"{name} is not a notebook: cell {index} is not an object")
         meta = cell.get("metadata") or {}
         nbg = meta.get("nbgrader") if isinstance(meta, dict) else None
         gid = nbg.get("grade_id") if isinstance(nbg, dict) else None
         if not isinstance(gid, str) or gid not in wanted or gid in found:
             continue
         if cell.get("cell_type") != "code":
-            raise NotebookError(f"the cell {gid!r} in {path.name} is not a code cell")
+            raise NotebookError(f"the cell {gid!r} in {name} is not a code cell")
         found[gid] = (index, _source(cell))
     missing = [g for g in grade_ids if g not in found]
     if missing:
         raise NotebookError(
-            f"{path.name} has no cell with grade id {', '.join(map(repr, missing))} "
+            f"{name} has no cell with grade id {', '.join(map(repr, missing))} "
             "(was the cell deleted, or its metadata changed?)"
         )
     order = sorted(dict.fromkeys(grade_ids), key=lambda g: found[g][0])

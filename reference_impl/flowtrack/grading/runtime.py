@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import re
 import shutil
 import sys
 import sysconfig
@@ -20,7 +21,8 @@ import flowtrack
 
 from .cache import atomic_dir, cache_root, link_or_copy, world_readable
 
-__all__ = ["FLOWTRACK_DIR", "TOOLING_REMOVED_FROM_COPY", "Runtime", "filtered_flowtrack", "locate_module",
+__all__ = ["FLOWTRACK_DIR", "TOOLING_REMOVED_FROM_COPY", "Runtime", "allowed_packages", "filtered_flowtrack",
+           "package_entries", "locate_module",
            "mirror_site", "python_runtime", "runner_dir", "site_dirs", "stub_dir"]
 
 # The library the sandbox copies (as installed: an editable checkout or site-packages).
@@ -205,3 +207,94 @@ def locate_module(name: str, roots: Sequence[str]) -> Path | None:
                 return f
     return None
 
+
+
+def _site_state() -> tuple[int, ...]:
+    """mtimes of the site-packages folders: an install or removal changes them (cache key)."""
+    out = []
+    for d in site_dirs():
+        try:
+            out.append(os.stat(d).st_mtime_ns)
+        except OSError:
+            out.append(0)
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=4)
+def _distributions(state: tuple[int, ...]) -> dict[str, list[str]]:
+    import importlib.metadata as md
+
+    return md.packages_distributions()
+
+
+def allowed_packages(allowed: Sequence[str]) -> tuple[str, ...]:
+    """The top-level packages an allowlist needs: those it names (``scipy.linalg`` -> ``scipy``) and,
+    through their distributions' requirements (extras left out), what they import themselves
+    (``scipy`` -> ``numpy``; ``sympy`` -> ``mpmath``). Sorted.
+
+    >>> allowed_packages(["numpy", "scipy.linalg"])
+    ('numpy', 'scipy')
+    """
+    return _allowed_packages(tuple(allowed), _site_state())
+
+
+@functools.lru_cache(maxsize=64)
+def _allowed_packages(allowed: tuple[str, ...], state: tuple[int, ...]) -> tuple[str, ...]:
+    import importlib.metadata as md
+
+    tops = {a.split(".")[0] for a in allowed}
+    by_top = _distributions(state)
+    todo = [d for t in tops for d in by_top.get(t, [])]
+    seen: set[str] = set()
+    while todo:
+        name = todo.pop()
+        if name.lower() in seen:
+            continue
+        seen.add(name.lower())
+        try:
+            dist = md.distribution(name)
+        except md.PackageNotFoundError:
+            continue
+        tops |= {t for t, dists in by_top.items() if name in dists and not t.startswith("_")}
+        for req in dist.requires or ():
+            if "extra ==" in req.replace('"', "").replace("'", ""):
+                continue
+            m = re.match(r"[A-Za-z0-9][A-Za-z0-9._-]*", req)
+            if m:
+                todo.append(m.group(0))
+    return tuple(sorted(tops))
+
+
+def package_entries(site: str, packages: Sequence[str]) -> list[str]:
+    """The entries of the site-packages folder ``site`` that the top-level ``packages`` consist of:
+    the package folders or modules, their distributions' bundled libraries (``numpy.libs``,
+    ``scipy.libs``) and other top-level files those distributions installed there."""
+    return list(_package_entries(str(site), tuple(packages), _site_state()))
+
+
+@functools.lru_cache(maxsize=64)
+def _package_entries(site: str, packages: tuple[str, ...], state: tuple[int, ...]) -> tuple[str, ...]:
+    import importlib.metadata as md
+
+    by_top = _distributions(state)
+    root = Path(site).resolve()
+    names: set[str] = set()
+    for top in packages:
+        for cand in (top, f"{top}.py"):
+            if (root / cand).exists():
+                names.add(cand)
+        for dist_name in by_top.get(top, []):
+            try:
+                dist = md.distribution(dist_name)
+            except md.PackageNotFoundError:
+                continue
+            for f in dist.files or ():
+                try:
+                    p = Path(dist.locate_file(f)).resolve()
+                except (OSError, RuntimeError):
+                    continue
+                if p.is_relative_to(root) and p != root:
+                    first = p.relative_to(root).parts[0]
+                    if not first.endswith((".dist-info", ".egg-info")) and first != "__pycache__":
+                        names.add(first)
+    return tuple(sorted(n for n in names if (root / n).exists()))

@@ -18,37 +18,44 @@ grader controls everything else. Defences, outermost first, and what each one st
    codes, printed text or files).
 2. **bubblewrap** (``isolation == "bwrap"``): new user, mount, pid, network, ipc, uts and cgroup
    namespaces; ``--die-with-parent``, ``--new-session``; a fresh root holding only read-only binds of
-   ``/usr`` (and the ``/lib*`` links), the Python runtime, the virtual environment's
-   site-packages, a *filtered copy* of flowtrack (blocked modules replaced by stubs that raise
-   ``ImportError``, ``flowtrack.grading`` and the course tooling removed) and the runner. The
-   student's empty temporary directory is the only writable place: its ``home`` is bound at cwd
-   and HOME, its ``tmp`` at ``/tmp``; bubblewrap's own root and ``/dev`` (tmpfs, i.e. RAM that no
-   rlimit covers) are remounted read-only, and the grader measures the directory while it waits
-   (``Limits.disk_bytes``/``disk_files``), so neither the disk nor the RAM of the machine can be
-   filled. Nothing of the course (repository, exercises, solutions, grader output, gradebook) exists
+   ``/usr`` (and the ``/lib*`` links), the Python runtime, the packages of the exercise's
+   allowlist (``allowed``: e.g. numpy and scipy and nothing else of the environment; without an
+   allowlist the virtual environment's site-packages and a *filtered copy* of flowtrack, blocked
+   modules replaced by stubs that raise ``ImportError``) and the runner. Two tmpfs of
+   ``Limits.disk_bytes`` each, HOME (the cwd) and ``/tmp``, are the only writable places: the
+   kernel bounds their size, they vanish with the sandbox, and the grader reads their use with
+   ``statvfs`` (bytes and files, ``disk_bytes``/``disk_files``); bubblewrap's own root and ``/dev``
+   (tmpfs, i.e. RAM) are remounted read-only, so neither the disk nor the RAM of the machine can
+   be filled. Nothing of the course (repository, exercises, solutions, grader output, gradebook) exists
    inside. Blocked third-party packages (e.g. ``scipy.optimize``) have a stub directory bound over
    them, so even loading their files by path fails. No network interfaces but loopback of the new
    namespace (so no connection to the host). When the grader runs as root it switches, before
    starting bubblewrap, to a per-sandbox unprivileged uid (RLIMIT_NPROC is then enforced and
    private to this student); a Python runtime that uid cannot read (e.g. pyenv under ``/root``) is
    mirrored once, by hard links, into a world-readable cache.
-3. **Resource limits** (``setrlimit`` before exec, RLIMIT_NPROC also in the child): CPU time,
+3. **Resource limits**: a cgroup per sandbox where one can be made (:mod:`flowtrack.grading.cgroups`:
+   memory of all its processes together, memfd, shared memory and its tmpfs included, and
+   processes), and ``setrlimit`` before exec (RLIMIT_NPROC also in the child): CPU time,
    address space (memory bombs fail with MemoryError), processes (fork bombs), open files, file
    size, no core files; the grader enforces a wall-clock timeout per batch and output size per
    batch, and on any violation kills the whole sandbox (process group; bubblewrap's pid namespace;
    as root also every process of the sandbox uid), so nothing outlives it.
 4. **Inside the child** (a second line, never the only one): a ``sys.meta_path`` blocker and an
-   audit hook refusing blocked imports and opening protected paths; fd 1/2 point at /dev/null and
+   audit hook refusing blocked imports, imports outside the allowlist (with a message naming it)
+   and opening protected paths; fd 1/2 point at /dev/null and
    ``print`` goes to a capped buffer, so student output cannot mix with replies.
 
 Fallback (``isolation == "fallback: <why>"``): when bubblewrap is missing or namespaces are not
 allowed (a student's laptop running ``flowtrack check``), the child is a plain subprocess with the
 same limits, an empty temporary cwd, ``-I -S``, the filtered flowtrack copy, and (as root) a
-per-sandbox uid. The audit hook additionally refuses the repository, the real flowtrack sources,
-blocked packages, ``hidden_paths``, sockets and process spawning. This is best effort: a determined
-student can get around an in-process hook (e.g. through ctypes), which is why ``flowtrack grade``
-warns when it is not running under bubblewrap. ``FLOWTRACK_SANDBOX=fallback`` forces the fallback,
-``FLOWTRACK_SANDBOX=bwrap`` requires bubblewrap.
+per-sandbox uid; its folder on the host is measured by walking it with directory descriptors
+(deleted files still open counted). The audit hook additionally refuses the repository, the real
+flowtrack sources, blocked packages and those outside the allowlist, ``hidden_paths`` (``flowtrack
+grade`` passes the submissions, its output folder and the key file), sockets and process spawning.
+This is best effort: a determined student can get around an in-process hook (e.g. through ctypes),
+which is why ``flowtrack grade`` refuses the fallback unless ``--allow-unsafe-sandbox`` is given
+(``flowtrack check``, a student's own run, falls back with a warning).
+``FLOWTRACK_SANDBOX=fallback`` forces the fallback, ``FLOWTRACK_SANDBOX=bwrap`` requires bubblewrap.
 
 The prepared copies the sandbox reads are kept between runs in a cache (:mod:`flowtrack.grading.cache`);
 :mod:`flowtrack.grading.runtime` makes them, :mod:`flowtrack.grading.isolation` starts and ends the
@@ -68,30 +75,37 @@ import struct
 import subprocess
 import tempfile
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from .cache import cache_root, live_copy, world_readable
+from .cgroups import SandboxCgroup
 from .isolation import (
     SandboxUnavailable,
     bwrap_base,
     bwrap_status,
     choose_mode,
+    descendants,
     drop_to,
     kill_uid,
+    mount_usage,
     remove_tree,
     sandbox_uid,
     signal_name,
     tree_usage,
+    unlinked_bytes,
     user_tasks,
 )
 from .runtime import (
     FLOWTRACK_DIR,
+    allowed_packages,
     filtered_flowtrack,
     locate_module,
     mirror_site,
+    package_entries,
     python_runtime,
     runner_dir,
     site_dirs,
@@ -121,7 +135,10 @@ class Limits:
     wall_seconds : float
         Default wall-clock timeout of one batch (``Sandbox.run(timeout=...)`` overrides it).
     memory_bytes : int
-        Address space (RLIMIT_AS); numpy with single-threaded OpenBLAS needs about 0.5 GiB.
+        Address space per process (RLIMIT_AS); numpy with single-threaded OpenBLAS needs about
+        0.5 GiB. Where the sandbox gets a cgroup (:mod:`flowtrack.grading.cgroups`), everything its
+        processes hold together (forked children, memfd and shared memory, its tmpfs) is bounded
+        by ``memory_bytes + 2 * disk_bytes``; otherwise only per process.
     processes : int
         Processes and threads (RLIMIT_NPROC) the sandbox may hold.
     open_files : int
@@ -131,13 +148,17 @@ class Limits:
     file_size : int
         Largest file the child may write (RLIMIT_FSIZE).
     disk_bytes : int
-        Bytes the child may keep in its temporary directory (its only writable place: HOME, cwd and
-        ``/tmp`` all live there). The grader measures it while it waits for replies (every
-        ``0.2`` s) and after each batch, and kills the child when it is exceeded, so a student
-        cannot fill the grading machine's disk (the overshoot is bounded by what the child writes
-        in 0.2 s).
+        Bytes the child may keep in its writable places (HOME, which is its cwd, and ``/tmp``).
+        Under bubblewrap each is a tmpfs of this size inside the sandbox (the kernel refuses writes
+        beyond it, unlinked files included; nothing reaches the host's disks) and the grader kills
+        the child when both together hold more. In the fallback they are folders of the host that
+        the grader measures (walking with directory descriptors; deleted files the child keeps
+        open included; a folder it cannot read or one nested deeper than
+        :data:`~flowtrack.grading.isolation.MAX_TREE_DEPTH` is a violation) while it waits for
+        replies (every ``0.2`` s) and after each batch; the overshoot is bounded by what the child
+        writes in 0.2 s.
     disk_files : int
-        Files and directories the child may create there (bounds the cost of measuring).
+        Files and directories the child may create there.
     """
 
     cpu_seconds: float = 20
@@ -186,6 +207,14 @@ class Sandbox:
         when grading as root); default: a private cache directory.
     hidden_paths : sequence of Path, optional
         Extra paths the fallback's audit hook refuses (bubblewrap never shows them anyway).
+    allowed : sequence of str, optional
+        An allowlist of what the student may import besides the standard library (``"numpy"``,
+        ``"scipy.linalg"``). Under bubblewrap only the packages it needs
+        (:func:`~flowtrack.grading.runtime.allowed_packages`: ``scipy.linalg`` needs ``scipy`` and
+        ``numpy``) are in the sandbox at all; the child refuses importing any other package with a
+        message naming the allowlist, and the fallback's audit hook refuses the files of the others.
+        Within an allowed package the granularity is the top-level package (``blocked`` still
+        removes submodules). ``None`` (default): everything installed, minus ``blocked``.
 
     Attributes
     ----------
@@ -212,6 +241,7 @@ class Sandbox:
         limits: Limits = Limits(),  # a frozen dataclass: immutable
         workdir_parent: Path | None = None,
         hidden_paths: Sequence[str | Path] = (),
+        allowed: Sequence[str] | None = None,
     ) -> None:
         if isinstance(cells, str | bytes) or not all(
             isinstance(c, tuple | list) and len(c) == 2 and all(isinstance(s, str) for s in c) for c in cells
@@ -225,6 +255,12 @@ class Sandbox:
             raise TypeError("limits must be a Limits")
         self.cells = [(str(g), str(s)) for g, s in cells]
         self.blocked = tuple(dict.fromkeys([*blocked, "flowtrack.grading"]))
+        if allowed is not None and (isinstance(allowed, str) or not all(
+            isinstance(a, str) and a and all(p.isidentifier() for p in a.split(".")) for a in allowed
+        )):
+            raise TypeError("allowed must be a sequence of dotted module names such as 'scipy.linalg'")
+        self.allowed = None if allowed is None else tuple(dict.fromkeys(["numpy", *allowed]))
+        self._packages = None if self.allowed is None else allowed_packages(self.allowed)
         self.limits = limits
         self.hidden_paths = tuple(str(Path(p).resolve()) for p in hidden_paths)
         self.cell_errors: dict[str, str] = {}
@@ -245,6 +281,9 @@ class Sandbox:
         self._reply_fd: int | None = None
         self._stderr = None
         self._workdir: Path | None = None
+        self._cgroup: SandboxCgroup | None = None
+        self.cgroup = ""  # "v2" or "v1" when the running child has a cgroup of its own
+        self.cleanup_problems: list[str] = []
         self._next_disk_check = 0.0
         self._cpu_used = 0.0
         self._cpu_ceiling = int(10 * limits.cpu_seconds + 60)
@@ -294,10 +333,12 @@ class Sandbox:
                 )
         ft_blocked = tuple(sorted(b for b in self.blocked if b.startswith("flowtrack.")))
         ft_root = live_copy(filtered_flowtrack, ft_blocked)
+        with_flowtrack = self._packages is None or "flowtrack" in self._packages
         runner = live_copy(runner_dir)
         workdir = Path(tempfile.mkdtemp(prefix="student-", dir=self._workdir_parent))
-        # workdir/home is the student's HOME and cwd, workdir/tmp its /tmp: together the only places
-        # it can write (measured as one tree, see Limits.disk_bytes).
+        # The fallback's only writable places: workdir/home (HOME and cwd) and workdir/tmp (TMPDIR),
+        # measured as one tree (see Limits.disk_bytes). Under bubblewrap they stay empty (the
+        # student writes to a tmpfs inside the sandbox) and workdir/home is only bubblewrap's cwd.
         home, tmp = workdir / "home", workdir / "tmp"
         for d in (home, tmp):
             d.mkdir(mode=0o700)
@@ -315,46 +356,72 @@ class Sandbox:
             cmd = bwrap_base(shutil.which("bwrap") or "bwrap")
             cmd += ["--ro-bind", runtime.source, runtime.prefix]
             for src, dst in zip(sites, inner_sites):
+                if self._packages is not None:  # only what the allowlist needs
+                    cmd += ["--dir", dst]
+                    for entry in package_entries(src, self._packages):
+                        cmd += ["--ro-bind", f"{src}/{entry}", f"{dst}/{entry}"]
+                    continue
                 cmd += ["--ro-bind", src, dst]
                 if (Path(src) / "flowtrack").exists():  # a non-editable install: hide the real one
                     cmd += ["--ro-bind", str(ft_root / "flowtrack"), f"{dst}/flowtrack"]
-            cmd += ["--ro-bind", str(ft_root), f"{_OPT}/lib", "--ro-bind", str(runner), f"{_OPT}/bin"]
+            if with_flowtrack:
+                cmd += ["--ro-bind", str(ft_root), f"{_OPT}/lib"]
+            cmd += ["--ro-bind", str(runner), f"{_OPT}/bin"]
             for name, loc in blocked_locs:
+                if self._packages is not None and name.split(".")[0] not in self._packages:
+                    continue  # not in the sandbox at all
                 inner = str(loc)
                 for src, dst in zip(sites, inner_sites):
                     if loc.is_relative_to(src):
                         inner = dst + "/" + str(loc.relative_to(src))
                 stub = stub_dir(name)
                 cmd += ["--ro-bind", str(stub if loc.is_dir() else stub / "__init__.py"), inner]
-            # The student's directory is the only writable place (HOME and /tmp; measured by the
-            # grader, see Limits.disk_bytes); bubblewrap's own root and /dev are tmpfs in RAM that
-            # no limit covers, so they are made read-only once everything is mounted.
-            cmd += ["--bind", str(home), _SANDBOX_HOME, "--bind", str(tmp), "/tmp",
+            # The only writable places are two tmpfs, HOME and /tmp, each of Limits.disk_bytes: the
+            # kernel bounds their size (unlinked files included), the grader's meter their sum.
+            # They live in the sandbox's mount namespace (in its cgroup's memory when there is one)
+            # and vanish with it: nothing a student writes reaches a disk of the host. bubblewrap's
+            # own root and /dev are unbounded tmpfs, so they are made read-only once all is mounted.
+            size = str(int(self.limits.disk_bytes))
+            cmd += ["--size", size, "--tmpfs", _SANDBOX_HOME, "--size", size, "--tmpfs", "/tmp",
                     "--remount-ro", "/dev", "--remount-ro", "/", "--chdir", _SANDBOX_HOME, "--clearenv"]
             for k, v in {**env, "HOME": _SANDBOX_HOME, "TMPDIR": "/tmp"}.items():
                 cmd += ["--setenv", k, v]
             exe = str(Path(runtime.prefix) / Path(runtime.executable).relative_to(runtime.source))
             cmd += [exe, "-I", "-S", "-B", f"{_OPT}/bin/_child.py"]
-            init = {"paths": [f"{_OPT}/lib", *inner_sites], "deny_paths": [], "strict_audit": False}
+            init = {"paths": [f"{_OPT}/lib"] * with_flowtrack + inner_sites, "deny_paths": [],
+                    "strict_audit": False}
         else:
             env.update(HOME=str(home), TMPDIR=str(tmp))
             if runtime.lib_dir:
                 env["LD_LIBRARY_PATH"] = runtime.lib_dir
             deny = [str(FLOWTRACK_DIR), str(self._cache / "ft"), str(self._cache / "stubs"),
                     *self.hidden_paths, *(str(loc) for _, loc in blocked_locs)]
+            if self._packages is not None:  # the packages the allowlist does not need
+                for site in sites:
+                    keep = set(package_entries(site, self._packages))
+                    deny += [os.path.join(site, e) for e in sorted(os.listdir(site)) if e not in keep]
             repo = FLOWTRACK_DIR.parent.parent
             in_site = any(FLOWTRACK_DIR.is_relative_to(s) for s in sites)
             if not in_site and (repo / "pyproject.toml").exists():
                 deny.append(str(repo))
             cmd = [runtime.executable, "-I", "-S", "-B", str(runner / "_child.py")]
-            init = {"paths": [str(ft_root), *sites], "deny_paths": deny, "strict_audit": True,
+            init = {"paths": [str(ft_root)] * with_flowtrack + sites, "deny_paths": deny,
+                    "strict_audit": True,
                     "write_root": str(workdir),
                     "allow_paths": [str(ft_root), *sites, *runtime.stdlib, str(runner)]}
+        if self._packages is not None:
+            init["allowed"] = list(self._packages)
+            init["allowed_text"] = ", ".join(self.allowed or ())
         return cmd, env, init, workdir
+
+    def _cgroup_memory(self) -> int:
+        """What the sandbox's cgroup may hold: ``memory_bytes`` plus its two tmpfs of ``disk_bytes``."""
+        return int(self.limits.memory_bytes + 2 * self.limits.disk_bytes)
 
     def _preexec(self, nproc_outer: int | None):
         lim = self.limits
         uid = self._uid
+        cgroup = self._cgroup
         cpu = math.ceil(lim.cpu_seconds) + 2  # + import of numpy and the cells
 
         def fn() -> None:
@@ -366,6 +433,8 @@ class Sandbox:
             rl.setrlimit(rl.RLIMIT_FSIZE, (lim.file_size, lim.file_size))
             if nproc_outer is not None:
                 rl.setrlimit(rl.RLIMIT_NPROC, (nproc_outer, nproc_outer))
+            if cgroup is not None:
+                cgroup.enter()
             drop_to(uid)
 
         return fn
@@ -389,6 +458,9 @@ class Sandbox:
             nproc_outer = None
             nproc_child = user_tasks() + self.limits.processes
         init.update(op="init", nproc=nproc_child, blocked=list(self.blocked), cells=self.cells)
+        # bubblewrap's two processes come on top of the student's
+        self._cgroup = SandboxCgroup.create(self._cgroup_memory(), self.limits.processes + 4)
+        self.cgroup = self._cgroup.kind if self._cgroup is not None else ""
         self._stderr = tempfile.TemporaryFile()
         try:
             self._proc = subprocess.Popen(
@@ -474,13 +546,30 @@ class Sandbox:
         return value
 
     def _check_disk(self) -> None:
-        """Raise _ChildGone when the child's directory holds more than the disk limits allow."""
+        """Raise _ChildGone when the child holds more than the disk limits allow.
+
+        Under bubblewrap the kernel bounds the bytes (a tmpfs of ``disk_bytes``); its entries are
+        read with ``statvfs`` through the sandbox's ``/proc/<pid>/root``. In the fallback the
+        directory is walked with descriptors (what cannot be walked is a violation) and the
+        deleted-but-open files of the child's processes are added.
+        """
         now = time.monotonic()
-        if self._workdir is None or now < self._next_disk_check:
+        if self._workdir is None or self._proc is None or now < self._next_disk_check:
             return
         self._next_disk_check = now + _DISK_POLL
         lim = self.limits
-        size, files = tree_usage(self._workdir, lim.disk_files)
+        if self._mode == "bwrap":
+            usages = [mount_usage(pid, path) for pid in descendants(self._proc.pid)[1:2]
+                      for path in (_SANDBOX_HOME, "/tmp")]  # bubblewrap's init: the sandbox's root
+            if len(usages) < 2 or None in usages:
+                return  # not mounted yet, or already gone; the kernel bounds the bytes anyway
+            size = sum(u[0] for u in usages if u is not None)
+            files = sum(u[1] for u in usages if u is not None)
+        else:
+            size, files, problem = tree_usage(self._workdir, lim.disk_files)
+            if problem:
+                raise _ChildGone(f"{problem}: the disk limit cannot be checked")
+            size += unlinked_bytes(descendants(self._proc.pid))
         if files > lim.disk_files:
             raise _ChildGone(f"created more than {lim.disk_files} files (the disk limit)")
         if size > lim.disk_bytes:
@@ -499,6 +588,9 @@ class Sandbox:
             return f"used more than {self.limits.cpu_seconds:g} s of CPU time"
         if sig == signal.SIGXFSZ:
             return f"wrote a file larger than the limit ({self.limits.file_size} bytes)"
+        if sig == signal.SIGKILL and self._cgroup is not None and self._cgroup.oom_killed():
+            limit = self._cgroup_memory()
+            return f"ran out of memory (the sandbox's processes together may hold {limit} bytes)"
         if sig == signal.SIGKILL:
             return "was killed (it ran out of memory or exceeded a limit)"
         if sig:
@@ -622,6 +714,10 @@ class Sandbox:
                     p.stdin.close()
                 except OSError:
                     pass
+        if self._cgroup is not None:
+            self._cgroup.kill()
+            self._cgroup.remove()
+            self._cgroup = None
         if self._uid is not None and p is not None:
             kill_uid(self._uid)
         if self._reply_fd is not None:
@@ -631,7 +727,13 @@ class Sandbox:
             self._stderr.close()
             self._stderr = None
         if self._workdir is not None:
-            remove_tree(self._workdir)
+            problems = remove_tree(self._workdir)
+            if problems:
+                self.cleanup_problems += problems
+                warnings.warn(
+                    f"the sandbox could not remove all of {self._workdir}: {'; '.join(problems[:3])}",
+                    RuntimeWarning, stacklevel=2,
+                )
             self._workdir = None
 
 

@@ -87,8 +87,10 @@ class Exercise:
 
     ``notebook`` is the path relative to ``exercises/``; ``answer_cells`` the grade_ids of the cells
     (in notebook order) the child executes; ``blocked`` the modules the child cannot import
-    (e.g. ``"flowtrack.camera"``, ``"scipy.optimize"``); ``allowed`` the flowtrack modules the
-    exercise text says a student may use.
+    (e.g. ``"flowtrack.camera"``, ``"scipy.optimize"``); ``allowed`` what the student may import
+    besides the standard library (the notebook's "You may import" line; ``numpy`` always): the
+    sandbox then holds only the packages these need and refuses importing any other. Empty: no
+    allowlist (everything installed, minus ``blocked``).
     """
 
     id: str

@@ -90,5 +90,6 @@ EXERCISE = Exercise(
     notebook="ex01_projection_jacobian.ipynb",
     answer_cells=("project", "projection_jacobian"),
     blocked=("flowtrack.camera", "flowtrack.symbolic"),
+    allowed=('numpy',),
     tests=(_ex01_project_public, _ex01_project_hidden, _ex01_jac_public, _ex01_jac_hidden),
 )

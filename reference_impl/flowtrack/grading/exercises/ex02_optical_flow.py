@@ -59,5 +59,6 @@ EXERCISE = Exercise(
     notebook="ex02_optical_flow.ipynb",
     answer_cells=("optical_flow",),
     blocked=("flowtrack.camera", "flowtrack.symbolic"),
+    allowed=('numpy',),
     tests=(_ex02_public, _ex02_hidden),
 )

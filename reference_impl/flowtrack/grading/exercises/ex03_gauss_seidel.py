@@ -99,5 +99,6 @@ EXERCISE = Exercise(
     notebook="ex03_gauss_seidel.ipynb",
     answer_cells=("red_black_sweep", "solve_gauss_seidel"),
     blocked=("flowtrack.variational", "flowtrack.sceneflow"),
+    allowed=('numpy',),
     tests=(_ex03_sweep_public, _ex03_sweep_hidden, _ex03_solve_public, _ex03_solve_hidden),
 )

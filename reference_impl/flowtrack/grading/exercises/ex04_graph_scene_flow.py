@@ -88,5 +88,6 @@ EXERCISE = Exercise(
     notebook="ex04_graph_scene_flow.ipynb",
     answer_cells=("knn_laplacian", "graph_scene_flow"),
     blocked=("flowtrack.sceneflow", "flowtrack._graph", "flowtrack.variational", "flowtrack.clustering"),
+    allowed=('numpy', 'scipy'),
     tests=(_ex04_L_public, _ex04_L_hidden, _ex04_flow_public, _ex04_flow_hidden),
 )

@@ -74,5 +74,6 @@ EXERCISE = Exercise(
     notebook="ex05_cv_model.ipynb",
     answer_cells=("cv_transition", "cv_process_noise"),
     blocked=("flowtrack.kalman", "flowtrack.batch_kalman", "flowtrack.symbolic", "flowtrack.tracking"),
+    allowed=('numpy',),
     tests=(_ex05_F_public, _ex05_F_hidden, _ex05_Q_public, _ex05_Q_hidden),
 )

@@ -73,5 +73,6 @@ EXERCISE = Exercise(
     notebook="ex07_mahalanobis_gating.ipynb",
     answer_cells=("mahalanobis_cost", "gated_cost"),
     blocked=("flowtrack.association", "flowtrack.tracking"),
+    allowed=('numpy', 'scipy.stats', 'scipy.linalg'),
     tests=(_ex07_cost_public, _ex07_cost_hidden, _ex07_gate_public, _ex07_gate_hidden),
 )

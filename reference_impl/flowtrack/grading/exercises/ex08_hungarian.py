@@ -85,5 +85,6 @@ EXERCISE = Exercise(
         "scipy.optimize",
         "scipy.sparse.csgraph",
     ),
+    allowed=('numpy',),
     tests=(_ex08_public, _ex08_hidden),
 )

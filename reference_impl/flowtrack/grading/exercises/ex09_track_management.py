@@ -113,5 +113,6 @@ EXERCISE = Exercise(
     notebook="ex09_track_management.ipynb",
     answer_cells=("manage_tracks",),
     blocked=("flowtrack.tracking",),
+    allowed=('numpy',),
     tests=(_ex09_public, _ex09_hidden),
 )

@@ -125,5 +125,6 @@ EXERCISE = Exercise(
     notebook="ex10_motion_clustering.ipynb",
     answer_cells=("cluster_tracks",),
     blocked=("flowtrack.clustering",),
+    allowed=('numpy', 'scipy'),
     tests=(_ex10_public, _ex10_hidden),
 )
