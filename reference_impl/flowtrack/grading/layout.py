@@ -51,6 +51,7 @@ __all__ = [
     "expected_layout",
     "match_exercise",
     "rename_notes",
+    "suggest_rename",
     "resolve_renamed",
     "suggest_student_id",
 ]
@@ -357,3 +358,26 @@ def rename_notes(student_dir: str | os.PathLike, exercises: Sequence[Exercise], 
             "the instructor, --accept-renamed); please submit under the expected name next time"
         ]
     return notes
+
+
+def suggest_rename(notebook: str | os.PathLike, exercises: Sequence[Exercise] | None = None
+                   ) -> tuple[Exercise, str] | None:
+    """``(exercise, note)`` when ``notebook``'s file name is a renamed copy of an exercise notebook.
+
+    The note tells the student the grader will not find the file under this name and gives the
+    ``mv`` command (``flowtrack check`` prints it).
+    """
+    if exercises is None:
+        from .exercises import EXERCISES as exercises
+    path = Path(notebook)
+    m = match_exercise(path.name, exercises)
+    if m is None or path.name == Path(m[0].notebook).name:
+        return None
+    ex = m[0]
+    target = path.with_name(Path(ex.notebook).name)
+    note = (
+        f"NOTE: {path.name!r} looks like a renamed copy of {Path(ex.notebook).name!r} (exercise {ex.id}); the "
+        f"grader only finds the notebook under its original name. Rename it before submitting:\n"
+        f"  mv {shlex.quote(str(path))} {shlex.quote(str(target))}"
+    )
+    return ex, note
