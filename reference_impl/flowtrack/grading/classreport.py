@@ -111,7 +111,7 @@ def score_distribution(scores: Sequence[float], max_score: float, bins: int = 10
     n = len(xs)
     hist = [0] * bins
     for x in xs:
-        k = int(math.floor(x / max_score * bins)) if max_score > 0 else 0
+        k = math.floor(x / max_score * bins) if max_score > 0 else 0
         hist[min(max(k, 0), bins - 1)] += 1
     if n:
         mid = n // 2
@@ -150,9 +150,20 @@ def class_report_markdown(
     ``"error"`` are left out and counted); ``exercises`` have ``id``, ``title`` and ``max_score``.
     """
     ok = [r for r in rows if "error" not in r]
-    lines = [f"# {title}", "", f"{len(ok)} students graded" + (
-        f", {len(rows) - len(ok)} could not be graded (see the run's errors)" if len(rows) > len(ok) else ""
-    ) + ".", "", "## Score distribution per exercise", ""]
+    lines = [
+        f"# {title}",
+        "",
+        f"{len(ok)} students graded"
+        + (
+            f", {len(rows) - len(ok)} could not be graded (see the run's errors)"
+            if len(rows) > len(ok)
+            else ""
+        )
+        + ".",
+        "",
+        "## Score distribution per exercise",
+        "",
+    ]
     lines += [
         "| exercise | max | n | mean | median | min | max scored | full marks | zero | histogram (0 → max) |",
         "|---|---|---|---|---|---|---|---|---|---|",
@@ -163,8 +174,8 @@ def class_report_markdown(
         peak = max(d["histogram"]) or 1
         spark = "".join(bars[math.ceil(8 * h / peak)] for h in d["histogram"])
         lines.append(
-            f"| {ex.id} | {_g(ex.max_score)} | {d['n']} | {_g(d['mean'])} | {_g(d['median'])} | {_g(d['min'])} "
-            f"| {_g(d['max'])} | {d['full']} | {d['zero']} | `{spark}` {d['histogram']} |"
+            f"| {ex.id} | {_g(ex.max_score)} | {d['n']} | {_g(d['mean'])} | {_g(d['median'])} "
+            f"| {_g(d['min'])} | {_g(d['max'])} | {d['full']} | {d['zero']} | `{spark}` {d['histogram']} |"
         )
     lines += ["", "## Most frequent mistakes", ""]
     mrows = misconception_rows(mistakes)
@@ -180,7 +191,9 @@ def class_report_markdown(
         lines += ["", "Every (exercise, mistake) pair with its students is in `misconceptions.csv`."]
     weakest = sorted(
         exercises,
-        key=lambda ex: sum(float(r.get("exercises", {}).get(ex.id, 0.0)) for r in ok) / max(ex.max_score, 1e-12),
+        key=lambda ex: (
+            sum(float(r.get("exercises", {}).get(ex.id, 0.0)) for r in ok) / max(ex.max_score, 1e-12)
+        ),
     )
     if ok and weakest:
         lines += ["", "## What to reteach first", ""]
@@ -192,8 +205,9 @@ def class_report_markdown(
     return "\n".join(lines)
 
 
-def write_class_outputs(out: str | os.PathLike, rows: Sequence[dict], exercises: Sequence,
-                        mistakes: Mistakes | None = None) -> tuple[Path, Path]:
+def write_class_outputs(
+    out: str | os.PathLike, rows: Sequence[dict], exercises: Sequence, mistakes: Mistakes | None = None
+) -> tuple[Path, Path]:
     """Write ``out/misconceptions.csv`` and ``out/class_report.md``; mistakes default to
     :func:`collect_mistakes` of the rows' students. Returns both paths."""
     from .grade import write_atomic

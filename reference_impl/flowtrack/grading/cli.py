@@ -123,8 +123,9 @@ def _add_instructor_options(p: argparse.ArgumentParser) -> None:
         "--roster",
         metavar="FILE",
         default=None,
-        help="CSV with a header: student (the folder name), name or first_name/last_name, email, optional "
-        "section, sis_user_id, sis_login_id, canvas_id; fills names and e-mails in the gradebook and LMS files",
+        help="CSV with a header: student (the folder name), name or first_name/last_name, email, "
+        "optional section, sis_user_id, sis_login_id, canvas_id; fills names and e-mails in the gradebook "
+        "and the LMS files",
     )
     p.add_argument(
         "--lms", choices=("canvas", "moodle"), default=None,

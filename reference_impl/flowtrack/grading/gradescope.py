@@ -91,7 +91,8 @@ if [ ! -s "$RESULTS" ]; then
         | sed -e 's/\\/\\\\/g' -e 's/"/\\"/g' | awk '{printf "%s\\n", $0}')"
     cat > "$RESULTS" <<EOF
 {"score": 0.0, "visibility": "visible", "stdout_visibility": "hidden", "tests": [],
- "output": "autograder error: the grader failed before grading (exit status $STATUS); this is not a problem with your work, please tell your instructor.\n$DETAIL",
+ "output": "autograder error: the grader failed before grading (exit status $STATUS); this is \
+not a problem with your work, please tell your instructor.\n$DETAIL",
  "extra_data": {"flowtrack": {"format": "flowtrack-results/1", "error": "grader failed", "status": $STATUS}}}
 EOF
 fi
@@ -178,9 +179,7 @@ def _exercise_ids(exercises) -> list[str]:
     if isinstance(exercises, str):
         exercises = exercises.split(",")
     ids = [str(e).strip() for e in exercises if str(e).strip()]
-    from .exercises import get_exercise
-
-    from .exercises import EXERCISES
+    from .exercises import EXERCISES, get_exercise
 
     out = []
     for i in ids:

@@ -80,22 +80,31 @@ def run_grade(
     for msg in report.messages(exercises, accept_renamed=accept_renamed):
         log(msg)
     if report.bad_folders:
-        return GradeRun(2, reason=(
-            f"graded no student: {len(report.bad_folders)} folder name(s) in {submissions} are not usable "
-            "student ids (see the suggested renames above)"
-        ))
+        return GradeRun(
+            2,
+            reason=(
+                f"graded no student: {len(report.bad_folders)} folder name(s) in {submissions} are not "
+                "usable student ids (see the suggested renames above)"
+            ),
+        )
     if not report.students:
-        why = "the notebooks are directly in SUBMISSIONS (see the suggested moves above)" if (
-            report.flat or report.flat_unmatched) else "SUBMISSIONS holds no student folder"
+        why = (
+            "the notebooks are directly in SUBMISSIONS (see the suggested moves above)"
+            if (report.flat or report.flat_unmatched)
+            else "SUBMISSIONS holds no student folder"
+        )
         return GradeRun(2, reason=f"graded no student: {why}")
     renamed = report.renamed_map() if accept_renamed else {}
     usable = [s for s in report.students if report.found.get(s) or renamed.get(s)]
     if not usable:
         hint = " (renamed copies were found: rename them or use --accept-renamed)" if report.renamed else ""
-        return GradeRun(2, reason=(
-            f"graded no student: none of the {len(report.students)} student folder(s) holds an expected "
-            f"notebook{hint}"
-        ))
+        return GradeRun(
+            2,
+            reason=(
+                f"graded no student: none of the {len(report.students)} student folder(s) holds an expected "
+                f"notebook{hint}"
+            ),
+        )
     # why earlier results are re-graded (the same comparison grade_student makes)
     ex_hash = exercises_hash(exercises)
     sub_hashes = {}
@@ -105,13 +114,27 @@ def run_grade(
         rename_notes(folder, exercises, notebooks, renamed.get(s))
         sub_hashes[s] = _submission_hash(notebooks)
     reasons = regrade_reasons(
-        out, report.students, exercises_hash=ex_hash, submission_hashes=sub_hashes, key_id=secret_id(secret),
+        out,
+        report.students,
+        exercises_hash=ex_hash,
+        submission_hashes=sub_hashes,
+        key_id=secret_id(secret),
         force=force,
     )
     rows = grade_class(
-        submissions, out, jobs=jobs, force=force, exercises=exercises, hidden_visibility=hidden_visibility,
-        assignment=assignment, progress=progress, log=log, sandbox_factory=sandbox_factory, secret=secret,
-        renamed=renamed or None, roster=roster_map,
+        submissions,
+        out,
+        jobs=jobs,
+        force=force,
+        exercises=exercises,
+        hidden_visibility=hidden_visibility,
+        assignment=assignment,
+        progress=progress,
+        log=log,
+        sandbox_factory=sandbox_factory,
+        secret=secret,
+        renamed=renamed or None,
+        roster=roster_map,
     )
     out = Path(out)
     files = {"grades": out / "grades.csv", "gradebook": out / "gradebook.db"}
@@ -124,26 +147,37 @@ def run_grade(
         f"graded {graded} students, kept {skipped} finished ones, {errors} errors; wrote "
         f"{out / 'grades.csv'}, {out / 'gradebook.db'} and {out}/<student>/results.json, feedback/"
     )
-    reasons = {s: why for s, why in reasons.items() if any(r["student"] == s and not r.get("skipped") for r in rows)}
+    reasons = {
+        s: why for s, why in reasons.items() if any(r["student"] == s and not r.get("skipped") for r in rows)
+    }
     if reasons:
         summary.append(describe_regrades(reasons))
     if accept_renamed and report.renamed:
-        summary.append(f"accepted {len(report.renamed)} renamed notebook(s) (noted in those students' feedback)")
+        summary.append(
+            f"accepted {len(report.renamed)} renamed notebook(s) (noted in those students' feedback)"
+        )
     elif report.renamed:
         summary.append(
-            f"warning: {len(report.renamed)} renamed notebook(s) were not graded (see above; --accept-renamed)"
+            f"warning: {len(report.renamed)} renamed notebook(s) were not graded "
+            "(see above; --accept-renamed)"
         )
     empty = [s for s in report.students if s not in usable]
     if empty:
         summary.append(
-            f"warning: {len(empty)} student folder(s) hold no expected notebook (scored 0): {', '.join(empty[:10])}"
+            f"warning: {len(empty)} student folder(s) hold no expected notebook (scored 0): "
+            + ", ".join(empty[:10])
         )
     summary.append(f"wrote {files['misconceptions']} and {files['class_report']}")
     if lms:
         from .lms import export_lms
 
         path, warnings = export_lms(
-            lms, files["grades"], out / f"{lms}.csv", roster=roster_map, mode=lms_mode, assignment=assignment,
+            lms,
+            files["grades"],
+            out / f"{lms}.csv",
+            roster=roster_map,
+            mode=lms_mode,
+            assignment=assignment,
         )
         files["lms"] = path
         summary.append(f"wrote {path} ({lms} gradebook import, {lms_mode})")

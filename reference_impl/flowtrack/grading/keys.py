@@ -87,7 +87,5 @@ def describe_regrades(reasons: Mapping[str, str]) -> str:
     parts = ", ".join(f"{n} {why}" for why, n in counts.most_common())
     line = f"re-graded {len(reasons)} student(s) with earlier results: {parts}"
     if "seed key changed" in counts:
-        line += (
-            " (hidden-test inputs depend on the key: use the same --secret-file for every run of a class)"
-        )
+        line += " (hidden-test inputs depend on the key: use the same --secret-file for every run of a class)"
     return line

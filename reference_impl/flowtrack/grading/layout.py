@@ -25,10 +25,10 @@ of the missing notebooks and the student's feedback says so (:func:`rename_notes
 Matching works on a canonical form of a file name: without ``.ipynb``, lower case, copy suffixes
 removed (repeatedly), separators unified:
 
->>> canonical("EX05_cv_model (1).ipynb"), canonical("ex05-cv-model - Copy.ipynb"), canonical("ex05_cv_model_2.ipynb")
-('ex05_cv_model', 'ex05_cv_model', 'ex05_cv_model')
->>> copy_number("ex05_cv_model (3).ipynb"), copy_number("ex05_cv_model-2.ipynb"), copy_number("ex05_cv_model.ipynb")
-(3, 2, 0)
+>>> [canonical(n) for n in ("EX05_cv_model (1).ipynb", "ex05-cv-model - Copy.ipynb", "ex05_cv_model_2.ipynb")]
+['ex05_cv_model', 'ex05_cv_model', 'ex05_cv_model']
+>>> [copy_number(n) for n in ("ex05_cv_model (3).ipynb", "ex05_cv_model-2.ipynb", "ex05_cv_model.ipynb")]
+[3, 2, 0]
 """
 
 from __future__ import annotations
@@ -157,9 +157,13 @@ class LayoutReport:
             for f, new in sorted(self.bad_folders.items()):
                 out.append(f"  mv {q(str(Path(sub) / f))} {q(str(Path(sub) / new))}")
         if self.renamed:
-            verb = "graded in place of the missing notebook (--accept-renamed)" if accept_renamed else (
-                "NOT graded (the notebook counts as not submitted); rename it, or grade the best match "
-                "with --accept-renamed"
+            verb = (
+                "graded in place of the missing notebook (--accept-renamed)"
+                if accept_renamed
+                else (
+                    "NOT graded (the notebook counts as not submitted); rename it, or grade the best match "
+                    "with --accept-renamed"
+                )
             )
             out.append(f"layout: {len(self.renamed)} renamed copy(ies) of expected notebooks, {verb}:")
             for r in self.renamed:
@@ -215,8 +219,10 @@ def match_exercise(name: str, exercises: Sequence[Exercise]) -> tuple[Exercise, 
 def suggest_student_id(prefix: str) -> str:
     """A student id from an LMS file-name prefix or folder name (``<student>`` when none is left).
 
-    >>> suggest_student_id("doejane_LATE_12345_67890"), suggest_student_id("Jane Doe_4242_assignsubmission_file_")
-    ('doejane', 'Jane_Doe')
+    >>> suggest_student_id("doejane_LATE_12345_67890")
+    'doejane'
+    >>> suggest_student_id("Jane Doe_4242_assignsubmission_file_")
+    'Jane_Doe'
     """
     p = str(prefix).strip(" _-")
     p = _MOODLE_TAIL.sub("", p)
@@ -337,8 +343,12 @@ def resolve_renamed(student_dir: str | os.PathLike, renamed: Mapping[str, str]) 
     return out
 
 
-def rename_notes(student_dir: str | os.PathLike, exercises: Sequence[Exercise], notebooks: dict[str, Path],
-                 renamed: Mapping[str, str] | None) -> dict[str, list[str]]:
+def rename_notes(
+    student_dir: str | os.PathLike,
+    exercises: Sequence[Exercise],
+    notebooks: dict[str, Path],
+    renamed: Mapping[str, str] | None,
+) -> dict[str, list[str]]:
     """Apply ``--accept-renamed`` to ``notebooks`` (``{exercise id: located path}``, changed in place).
 
     Only exercises whose notebook is missing at the expected name take the renamed copy. Returns the
@@ -360,8 +370,9 @@ def rename_notes(student_dir: str | os.PathLike, exercises: Sequence[Exercise], 
     return notes
 
 
-def suggest_rename(notebook: str | os.PathLike, exercises: Sequence[Exercise] | None = None
-                   ) -> tuple[Exercise, str] | None:
+def suggest_rename(
+    notebook: str | os.PathLike, exercises: Sequence[Exercise] | None = None
+) -> tuple[Exercise, str] | None:
     """``(exercise, note)`` when ``notebook``'s file name is a renamed copy of an exercise notebook.
 
     The note tells the student the grader will not find the file under this name and gives the
@@ -376,8 +387,9 @@ def suggest_rename(notebook: str | os.PathLike, exercises: Sequence[Exercise] | 
     ex = m[0]
     target = path.with_name(Path(ex.notebook).name)
     note = (
-        f"NOTE: {path.name!r} looks like a renamed copy of {Path(ex.notebook).name!r} (exercise {ex.id}); the "
-        f"grader only finds the notebook under its original name. Rename it before submitting:\n"
+        f"NOTE: {path.name!r} looks like a renamed copy of {Path(ex.notebook).name!r} "
+        f"(exercise {ex.id}); the grader only finds the notebook under its original name. "
+        "Rename it before submitting:\n"
         f"  mv {shlex.quote(str(path))} {shlex.quote(str(target))}"
     )
     return ex, note

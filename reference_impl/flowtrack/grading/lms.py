@@ -163,7 +163,14 @@ def read_roster(path: str | os.PathLike) -> dict[str, RosterEntry]:
         if email and not _EMAIL.match(email):
             raise ValueError(f"roster {path}, row {rowno}: email must look like user@host, got {email!r}")
         out[student] = RosterEntry(
-            student, first, last, email, get("section"), get("sis_user_id"), get("sis_login_id"), get("lms_id")
+            student,
+            first,
+            last,
+            email,
+            get("section"),
+            get("sis_user_id"),
+            get("sis_login_id"),
+            get("lms_id"),
         )
     return out
 
@@ -179,7 +186,9 @@ def read_grades_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
     reader = csv.reader(io.StringIO(path.read_text(encoding="utf-8")))
     header = next(reader, None)
     if not header or header[0] != "student" or header[-2:] != ["total", "max"]:
-        raise ValueError(f"grades {path}: expected the columns student,<exercise ids>,total,max; got {header}")
+        raise ValueError(
+            f"grades {path}: expected the columns student,<exercise ids>,total,max; got {header}"
+        )
     ids = header[1:-2]
     rows = []
     for rowno, row in enumerate(reader, start=2):
@@ -191,8 +200,9 @@ def read_grades_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
             nums = [float(x) for x in row[1:]]
         except ValueError as exc:
             raise ValueError(f"grades {path}, row {rowno}: {exc}") from None
-        rows.append({"student": row[0], "exercises": dict(zip(ids, nums[:-2])), "score": nums[-2],
-                     "max": nums[-1]})
+        rows.append(
+            {"student": row[0], "exercises": dict(zip(ids, nums[:-2])), "score": nums[-2], "max": nums[-1]}
+        )
     return ids, rows
 
 
@@ -200,8 +210,9 @@ def _fmt(x: float | None) -> str:
     return "" if x is None else f"{round(float(x), 6):g}"
 
 
-def _columns(ids: Sequence[str], points: Mapping[str, float], mode: str, assignment: str,
-             total_max: float | None) -> list[tuple[str, str | None, float | None]]:
+def _columns(
+    ids: Sequence[str], points: Mapping[str, float], mode: str, assignment: str, total_max: float | None
+) -> list[tuple[str, str | None, float | None]]:
     """``(header, exercise id or None for the total, max points)`` of each grade column."""
     if mode == "exercises":
         return [(f"{assignment}: {i}", i, points.get(i)) for i in ids]
@@ -346,8 +357,15 @@ def export_lms(
         except (KeyError, ValueError, ImportError):
             points = {}
     if lms == "canvas":
-        text, warnings = canvas_csv(rows, ids, points=points, roster=roster, mode=mode, assignment=assignment,
-                                    assignment_id=assignment_id)
+        text, warnings = canvas_csv(
+            rows,
+            ids,
+            points=points,
+            roster=roster,
+            mode=mode,
+            assignment=assignment,
+            assignment_id=assignment_id,
+        )
     else:
         if assignment_id:
             raise ValueError("assignment_id is for Canvas only")
