@@ -182,7 +182,7 @@ def run_grade(
         files["lms"] = path
         summary.append(f"wrote {path} ({lms} gradebook import, {lms_mode})")
         summary += [f"warning: {w}" for w in warnings]
-    if roster_map is not None:
+    if roster_map is not None and not lms:  # (the LMS export reports the same)
         unknown = [r["student"] for r in rows if r["student"] not in roster_map]
         if unknown:
             summary.append(f"warning: {len(unknown)} student(s) not in the roster: {', '.join(unknown[:10])}")

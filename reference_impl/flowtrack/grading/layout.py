@@ -291,7 +291,7 @@ def _check_student(report: LayoutReport, student: str, folder: Path, exercises: 
         if best.name.lower() == expected_name.lower():
             reason = "case differs"
         elif copy_number(best.name):
-            reason = f"resubmission copy {copy_number(best.name)} (how Canvas and Moodle rename files)"
+            reason = f"resubmission copy {copy_number(best.name)}, as Canvas and Moodle name them"
         else:
             reason = "renamed"
         report.renamed.append(Rename(student, ex.id, ex.notebook, best.as_posix(), reason))
