@@ -422,6 +422,17 @@ def test_a_key_others_can_read_is_refused_with_the_fix(tmp_path):
     check_key_file(tmp_path / "missing")  # created owner-only later
 
 
+def test_gradescope_bundle_refuses_a_world_readable_key(tmp_path):
+    from flowtrack.grading.gradescope import build_autograder
+
+    key = tmp_path / "key"
+    key.write_bytes(os.urandom(32))
+    key.chmod(0o604)
+    with pytest.raises(InsecureKeyError, match="chmod 600"):
+        build_autograder(tmp_path / "ag.zip", secret_file=key)
+    assert not (tmp_path / "ag.zip").exists()
+
+
 def test_cli_refuses_a_world_readable_key(tmp_path, capsys):
     from flowtrack.cli import main
 

@@ -133,8 +133,10 @@ def build_autograder(
     ex_ids = _exercise_ids(exercises)
     secret = None
     if secret_file is not None:
+        from .keys import check_key_file
         from .spec import read_secret
 
+        check_key_file(secret_file)  # issue 18 hook: refuse a key others can read
         secret = read_secret(secret_file, create=True)
     root = Path(source) if source is not None else _package_root()
     pkg = root / "reference_impl" / "flowtrack"
