@@ -72,7 +72,6 @@ def check_notebook(notebook: str | os.PathLike, *, stream: TextIO | None = None)
         if found is None:
             raise ValueError(f"notebook: {path.name} is not one of the course's exercises ({exc})") from None
         exercise, renamed_note = found
-        print(renamed_note, file=stream)
     result = run_exercise(exercise, path, None, public_only=True)
     hidden = sum(float(t.points) for t in exercise.tests if t.hidden)
     print(format_report(result, hidden), file=stream)
