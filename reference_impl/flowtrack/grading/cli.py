@@ -43,6 +43,9 @@ def _secret(path: str | None) -> bytes | None:
             file=sys.stderr,
         )
         return None
+    from .keys import check_key_file
+
+    check_key_file(path)  # issue 18 hook: refuse a key others can read (InsecureKeyError, a ValueError)
     existed = Path(path).exists()
     secret = read_secret(path, create=True)
     if not existed:
@@ -61,11 +64,12 @@ def _add_secret_option(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
-    from .grade import UnsafeSandbox, grade_class
+    # issue 18 hook: layout checks, re-grade reasons, class report, LMS export live in instructor.py
+    from .grade import UnsafeSandbox
+    from .instructor import run_grade
 
-    secret = _secret(args.secret_file)
     try:
-        rows = grade_class(
+        run = run_grade(
             args.submissions,
             args.out,
             jobs=args.jobs,
@@ -73,31 +77,94 @@ def _cmd_grade(args: argparse.Namespace) -> int:
             hidden_visibility=args.hidden_visibility,
             assignment=args.assignment,
             progress=not args.no_progress,
-            secret=secret,
+            secret=_secret(args.secret_file),
+            accept_renamed=args.accept_renamed,
+            roster=args.roster,
+            lms=args.lms,
+            lms_mode="exercises" if args.lms_per_exercise else "total",
             hidden_paths=[args.secret_file] if args.secret_file else [],
             allow_unsafe_sandbox=args.allow_unsafe_sandbox,
         )
     except UnsafeSandbox as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    graded = sum(1 for r in rows if not r.get("skipped") and "error" not in r)
-    skipped = sum(1 for r in rows if r.get("skipped"))
-    errors = sum(1 for r in rows if "error" in r)
-    out = Path(args.out)
-    print(
-        f"graded {graded} students, kept {skipped} finished ones, {errors} errors; wrote "
-        f"{out / 'grades.csv'}, {out / 'gradebook.db'} and {out}/<student>/results.json, feedback/"
+    if run.reason:
+        print(f"error: {run.reason}", file=sys.stderr)
+    for line in run.summary:
+        print(line)
+    return run.status
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from .lms import export_lms
+
+    path, warnings = export_lms(
+        args.lms, args.grades, args.out, roster=args.roster,
+        mode="exercises" if args.per_exercise else "total", assignment=args.assignment,
+        assignment_id=args.canvas_assignment_id,
     )
-    return 1 if errors else 0
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    print(f"wrote {path} ({args.lms} gradebook import)")
+    return 0
 
 
 def _cmd_gradescope(args: argparse.Namespace) -> int:
     from .gradescope import build_autograder
 
     _secret(args.secret_file)  # creates a missing key (and says so), or warns that there is none
-    path = build_autograder(args.out, secret_file=args.secret_file)
+    path = build_autograder(args.out, secret_file=args.secret_file, exercises=args.exercises)
     print(f"wrote {path} (upload it as the assignment's autograder; Ubuntu 24.04 base image)")
     return 0
+
+
+def _add_instructor_options(p: argparse.ArgumentParser) -> None:
+    """``flowtrack grade`` options of issue 18: renamed copies, roster, LMS export."""
+    p.add_argument(
+        "--accept-renamed",
+        action="store_true",
+        help="grade the best renamed copy of a missing notebook ('name (1).ipynb', 'name-2.ipynb', case "
+        "changes: how Canvas and Moodle rename resubmissions) and say so in the student's feedback",
+    )
+    p.add_argument(
+        "--roster",
+        metavar="FILE",
+        default=None,
+        help="CSV with a header: student (the folder name), name or first_name/last_name, email, "
+        "optional section, sis_user_id, sis_login_id, canvas_id; fills names and e-mails in the gradebook "
+        "and the LMS files",
+    )
+    p.add_argument(
+        "--lms", choices=("canvas", "moodle"), default=None,
+        help="also write OUT/canvas.csv or OUT/moodle.csv for the LMS gradebook's CSV import",
+    )
+    p.add_argument(
+        "--lms-per-exercise", action="store_true",
+        help="one LMS column per exercise instead of one assignment total",
+    )
+
+
+def _add_export_command(subparsers) -> None:
+    p = subparsers.add_parser(
+        "export",
+        help="LMS gradebook import file (Canvas, Moodle) from a grade run's grades.csv",
+        description=(
+            "Writes the CSV the LMS gradebook imports: Canvas (Student, ID, SIS User ID, SIS Login ID, "
+            "Section, assignment columns, Points Possible row) or Moodle (First name, Last name, ID number, "
+            "Email address, grade item columns). --roster maps student ids to names, e-mails and LMS ids."
+        ),
+    )
+    p.add_argument("--lms", required=True, choices=("canvas", "moodle"), help="the LMS")
+    p.add_argument("--grades", required=True, help="grades.csv of a flowtrack grade run")
+    p.add_argument("--roster", default=None, help="roster CSV (see flowtrack grade --help)")
+    p.add_argument("--out", required=True, help="the CSV to write")
+    p.add_argument("--per-exercise", action="store_true", help="one column per exercise (default: total)")
+    p.add_argument("--assignment", default="flowtrack", help="assignment (column) name in the LMS")
+    p.add_argument(
+        "--canvas-assignment-id", default=None,
+        help="Canvas assignment id: the column becomes 'NAME (ID)' and updates that assignment",
+    )
+    p.set_defaults(func=_cmd_export)
 
 
 def register(subparsers) -> None:
@@ -159,7 +226,9 @@ def register(subparsers) -> None:
         "folder and the seed key become readable)",
     )
     _add_secret_option(p)
+    _add_instructor_options(p)  # issue 18 hook
     p.set_defaults(func=_cmd_grade)
+    _add_export_command(subparsers)  # issue 18 hook
 
     p = subparsers.add_parser(
         "gradescope",
@@ -171,6 +240,11 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument("--out", default="autograder.zip", help="zip to write (default: autograder.zip)")
+    p.add_argument(  # issue 18 hook
+        "--exercises", default=None, metavar="IDS",
+        help="comma-separated exercise ids graded by this autograder, e.g. ex01_projection_jacobian,"
+        "ex05_cv_model (default: all)",
+    )
     _add_secret_option(p)
     p.set_defaults(func=_cmd_gradescope)
 

@@ -324,7 +324,7 @@ def exercises_hash(exercises: Sequence[Exercise]) -> str:
     return h.hexdigest()
 
 
-def _submission_hash(notebooks: dict[str, Path]) -> str:
+def submission_hash(notebooks: dict[str, Path]) -> str:
     """sha256 of the located notebooks (``exercise id -> path``), a missing one included."""
     h = hashlib.sha256()
     for ex_id, p in notebooks.items():
@@ -487,6 +487,7 @@ def grade_student(
     ex_hash: str | None = None,
     secret: bytes | None = None,
     hidden_paths: Sequence[str | os.PathLike] = (),
+    renamed: dict[str, str] | None = None,
 ) -> dict:
     """Grade one student's folder; write ``out/<student>/feedback/*`` then ``results.json``.
 
@@ -495,14 +496,19 @@ def grade_student(
     :func:`run_exercise`.
 
     ``secret`` keys the hidden tests' seeds (see :func:`run_exercise`); results made with another
-    key (or none) are not kept on a re-run.
+    key (or none) are not kept on a re-run. ``renamed`` (``{exercise id: path in the folder}``, from
+    :mod:`.layout`, ``flowtrack grade --accept-renamed``) grades renamed copies of missing notebooks.
     Returns ``{"student", "skipped", "score", "max_score", "exercises": {id: score}, "isolation"}``.
     """
     student_dir = Path(student_dir)
     dest = Path(out) / student
     ex_hash = ex_hash or exercises_hash(exercises)
     notebooks = {ex.id: locate_notebook(student_dir, ex) for ex in exercises}
-    sub_hash = _submission_hash(notebooks)
+    # issue 18 hook: --accept-renamed grades an LMS-renamed copy (layout.py) and says so in the feedback
+    from .layout import rename_notes
+
+    notes = rename_notes(student_dir, exercises, notebooks, renamed)
+    sub_hash = submission_hash(notebooks)
     key_id = secret_id(secret)
     results_path = dest / "results.json"
     if not force:
@@ -534,6 +540,7 @@ def grade_student(
             r = ExerciseResult(ex.id, ex.title, ex.notebook)
             r.problems.append(f"internal grader error: {type(exc).__name__}: {exc}")
             r.tests = [_zero(t, r.problems[0]) for t in ex.tests]
+        r.problems[:0] = notes.get(ex.id, [])  # issue 18 hook (--accept-renamed)
         results.append(r)
     isolation = next((r.isolation for r in results if r.isolation.startswith("fallback")), "")
     isolation = isolation or next((r.isolation for r in results if r.isolation), "")
@@ -587,7 +594,8 @@ def list_students(submissions: str | os.PathLike) -> list[str]:
 
 def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_factory=None) -> dict:
     """Grade one task of :func:`grade_class`; ``exercises`` default to the registry's by id."""
-    student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids, secret, hidden = args
+    (student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids, secret, hidden,
+     renamed) = args
     try:
         if exercises is None:
             from .exercises import get_exercise
@@ -596,6 +604,7 @@ def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_fa
         return grade_student(
             student, student_dir, exercises, out, force=force, hidden_visibility=hidden_visibility,
             ex_hash=ex_hash, sandbox_factory=sandbox_factory, secret=secret, hidden_paths=hidden,
+            renamed=renamed,
         )
     except Exception as exc:  # reported in the summary, the class goes on
         try:  # no results.json of an earlier run may stand for this one
@@ -634,6 +643,8 @@ def grade_class(
     secret: bytes | None = None,
     hidden_paths: Sequence[str | os.PathLike] = (),
     allow_unsafe_sandbox: bool = False,
+    renamed: dict[str, dict[str, str]] | None = None,
+    roster: dict | None = None,
 ) -> list[dict]:
     """Grade every student folder of ``submissions`` into ``out`` (see the module docstring).
 
@@ -645,7 +656,9 @@ def grade_class(
     (:data:`RESERVED_NAMES`) is not graded and reported as an error.
 
     ``secret`` (the instructor's key, :func:`~flowtrack.grading.spec.read_secret`) seeds the hidden
-    tests; use the same one for every run of a class.
+    tests; use the same one for every run of a class. ``renamed`` (``{student: {exercise id: path}}``,
+    :meth:`.layout.LayoutReport.renamed_map`) grades accepted renamed copies; ``roster``
+    (:func:`.lms.read_roster`) fills names and e-mails in the nbgrader gradebook.
 
     ``jobs`` worker processes grade students in parallel (each runs its own sandboxes); ``jobs=1``
     grades in this process, as do exercises not in the registry and a given ``sandbox_factory``
@@ -684,7 +697,7 @@ def grade_class(
     reserved = [s for s in students if s.lower() in RESERVED_NAMES]
     tasks = [
         (s, str(Path(submissions) / s), str(out), force, hidden_visibility, ex_hash,
-         tuple(ex.id for ex in exercises), secret, hidden)
+         tuple(ex.id for ex in exercises), secret, hidden, (renamed or {}).get(s))
         for s in students if s not in reserved
     ]
     summaries: dict[str, dict] = {}
@@ -729,5 +742,5 @@ def grade_class(
         if "error" in r:
             log(f"error: student {r['student']}: {r['error']} (scored 0; re-run grade to retry)")
     _write_grades_csv(out / "grades.csv", rows, exercises)
-    write_gradebook(out / "gradebook.db", exercises, out, students, assignment=assignment)
+    write_gradebook(out / "gradebook.db", exercises, out, students, assignment=assignment, roster=roster)
     return rows

@@ -41,6 +41,12 @@ def grade_cells(exercise: Exercise) -> dict[str, float]:
     return cells
 
 
+def _roster_fields(roster: dict | None, student: str) -> dict:
+    """nbgrader Student fields (first_name, last_name, email, lms_user_id) from a roster entry."""
+    entry = (roster or {}).get(student)
+    return entry.nbgrader_fields() if entry is not None else {}
+
+
 def _cell_scores(results_path: Path) -> dict[tuple[str, str], float] | None:
     """``{(exercise_id, grade_id): score}`` from a student's results.json (None when unreadable)."""
     try:
@@ -104,11 +110,13 @@ def write_gradebook(
     students: Sequence[str],
     *,
     assignment: str = "flowtrack",
+    roster: dict | None = None,
 ) -> Path:
     """(Re)build the nbgrader gradebook at ``path`` from ``out/<student>/results.json``.
 
     Students without a readable results.json get a student entry and no submission (nbgrader then
-    exports 0 for them). Returns ``path``.
+    exports 0 for them). ``roster`` (``{student: RosterEntry}``, :func:`.lms.read_roster`) fills the
+    students' names and e-mails, so ``nbgrader export`` has them. Returns ``path``.
     """
     from nbgrader.api import Gradebook
     from sqlalchemy import text
@@ -134,7 +142,7 @@ def write_gradebook(
                 for gid, points in grade_cells(ex).items():
                     gb.add_grade_cell(gid, nb, assignment, max_score=points, cell_type="code")
             for student in students:
-                gb.add_student(student)
+                gb.add_student(student, **_roster_fields(roster, student))  # issue 18 hook
                 scores = _cell_scores(Path(out) / student / "results.json")
                 if scores is None:
                     continue

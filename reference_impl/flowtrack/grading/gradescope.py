@@ -2,10 +2,14 @@
 
 The zip holds::
 
-    setup.sh          Debian packages (python3, venv, bubblewrap, open3d's libraries) and
-                      ``pip install ./flowtrack[grading]`` into /autograder/venv (PyPI only)
+    setup.sh          Debian packages (python3, venv, bubblewrap), the ``grader`` extra's pinned
+                      requirements (requirements-grader.txt: numpy, scipy, ... no open3d,
+                      scikit-image or Jupyter) and ``pip install --no-deps ./flowtrack`` into
+                      /autograder/venv (PyPI only)
+    requirements-grader.txt   pyproject.toml's ``grader`` extra
     run_autograder    grades /autograder/submission as one student and writes
-                      /autograder/results/results.json
+                      /autograder/results/results.json; when the grader itself fails
+                      (flowtrack not importable, ...) it writes an error result instead
     flowtrack/        the package's source tree (pyproject.toml, README.md, reference_impl/flowtrack),
                       which carries the exercises' trusted test definitions
 
@@ -13,9 +17,10 @@ The zip holds::
 paths come from the environment so that it can be tried outside Gradescope: ``AUTOGRADER_ROOT``
 (default ``/autograder``) and ``FLOWTRACK_PYTHON`` (default ``$AUTOGRADER_ROOT/venv/bin/python``).
 The hidden tests' inputs are seeded by the submitter's Gradescope id from
-``submission_metadata.json`` (``"submission"`` when it is absent), keyed by the instructor's
-``secret`` when the zip holds one (``flowtrack gradescope --secret-file``). ``FLOWTRACK_EXERCISES`` (comma-
-separated ids) restricts grading to some exercises (one assignment per exercise on Gradescope).
+``submission_metadata.json`` (an error result when it is missing or names nobody), keyed by the instructor's
+``secret`` when the zip holds one (``flowtrack gradescope --secret-file``). ``flowtrack gradescope
+--exercises ex01,ex05`` sets the exercises graded (the default of ``run_autograder``; the
+``FLOWTRACK_EXERCISES`` environment variable overrides it).
 Use a Gradescope base image with Python >= 3.11 (Ubuntu 24.04).
 """
 
@@ -29,7 +34,8 @@ import sys
 import zipfile
 from pathlib import Path
 
-__all__ = ["build_autograder", "main", "run_submission", "student_from_metadata"]
+__all__ = ["MetadataError", "build_autograder", "grader_requirements", "main", "run_submission",
+           "student_from_metadata"]
 
 SETUP_SH = """\
 #!/usr/bin/env bash
@@ -37,7 +43,7 @@ SETUP_SH = """\
 set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq
-apt-get install -y -qq python3 python3-venv python3-pip bubblewrap libgomp1 libusb-1.0-0
+apt-get install -y -qq python3 python3-venv python3-pip bubblewrap
 python3 - <<'EOF'
 import sys
 if sys.version_info < (3, 11):
@@ -46,30 +52,52 @@ if sys.version_info < (3, 11):
 EOF
 python3 -m venv /autograder/venv
 /autograder/venv/bin/pip install -q --upgrade pip
-/autograder/venv/bin/pip install -q "/autograder/source/flowtrack[grading]"
+# Only what grading imports (pyproject's `grader` extra, pinned in requirements-grader.txt): no open3d,
+# scikit-image or Jupyter; then flowtrack itself without its dependencies.
+/autograder/venv/bin/pip install -q -r /autograder/source/requirements-grader.txt
+/autograder/venv/bin/pip install -q --no-deps "/autograder/source/flowtrack"
 # Student code runs as an unprivileged uid that must read the venv (numpy) but nothing else.
 chmod o+x /autograder
 chmod -R a+rX /autograder/venv
 """
 
-RUN_AUTOGRADER = """\
-#!/usr/bin/env bash
+RUN_AUTOGRADER = r"""#!/usr/bin/env bash
 # Gradescope runs this for every submission. Paths can be overridden to try it elsewhere.
+# It always leaves a results.json: the grader's, or an error result when the grader itself failed.
 set -uo pipefail
 ROOT="${AUTOGRADER_ROOT:-/autograder}"
 PY="${FLOWTRACK_PYTHON:-$ROOT/venv/bin/python}"
+EXERCISES="${FLOWTRACK_EXERCISES:-@EXERCISES@}"  # flowtrack gradescope --exercises (empty: all)
+RESULTS="$ROOT/results/results.json"
 mkdir -p "$ROOT/results"
+rm -f "$RESULTS"
 SECRET=()
 if [ -f "$ROOT/source/secret" ]; then  # the instructor's seed key (flowtrack gradescope --secret-file)
     chmod 600 "$ROOT/source/secret"
     SECRET=(--secret-file "$ROOT/source/secret")
 fi
-exec "$PY" -m flowtrack.grading.gradescope run \\
-    --submission "$ROOT/submission" \\
-    --metadata "$ROOT/submission_metadata.json" \\
-    --results "$ROOT/results/results.json" \\
-    ${FLOWTRACK_EXERCISES:+--exercises "$FLOWTRACK_EXERCISES"} \\
-    "${SECRET[@]}"
+ERR="$(mktemp)"
+"$PY" -m flowtrack.grading.gradescope run \
+    --submission "$ROOT/submission" \
+    --metadata "$ROOT/submission_metadata.json" \
+    --results "$RESULTS" \
+    ${EXERCISES:+--exercises "$EXERCISES"} \
+    "${SECRET[@]}" 2>"$ERR"
+STATUS=$?
+cat "$ERR" >&2
+if [ ! -s "$RESULTS" ]; then
+    # The grader could not run (flowtrack not importable, no interpreter, killed): an error result.
+    DETAIL="$(tail -c 1500 "$ERR" | tr -d '\000-\011\013-\037' \
+        | sed -e 's/\\/\\\\/g' -e 's/"/\\"/g' | awk '{printf "%s\\n", $0}')"
+    cat > "$RESULTS" <<EOF
+{"score": 0.0, "visibility": "visible", "stdout_visibility": "hidden", "tests": [],
+ "output": "autograder error: the grader failed before grading (exit status $STATUS); this is \
+not a problem with your work, please tell your instructor.\n$DETAIL",
+ "extra_data": {"flowtrack": {"format": "flowtrack-results/1", "error": "grader failed", "status": $STATUS}}}
+EOF
+fi
+rm -f "$ERR"
+exit 0
 """
 
 _SAFE = re.compile(r"[^A-Za-z0-9_.@+\-]")
@@ -91,6 +119,7 @@ def build_autograder(
     *,
     source: str | os.PathLike | None = None,
     secret_file: str | os.PathLike | None = None,
+    exercises: str | list[str] | tuple[str, ...] | None = None,
 ) -> Path:
     """Write the Gradescope autograder zip to ``out`` (see the module docstring); returns its path.
 
@@ -98,12 +127,16 @@ def build_autograder(
     no exercises, solutions, lessons or caches. With ``secret_file`` (created if missing, see
     :func:`~flowtrack.grading.spec.read_secret`) the key is added as ``secret`` (mode 0600: the
     sandbox's unprivileged uid cannot read it, and it is not bound into the sandbox) and seeds the
-    hidden tests.
+    hidden tests. ``exercises`` (ids, or a comma-separated string; default all) become
+    ``run_autograder``'s default (one Gradescope assignment per exercise set).
     """
+    ex_ids = _exercise_ids(exercises)
     secret = None
     if secret_file is not None:
+        from .keys import check_key_file
         from .spec import read_secret
 
+        check_key_file(secret_file)  # issue 18 hook: refuse a key others can read
         secret = read_secret(secret_file, create=True)
     root = Path(source) if source is not None else _package_root()
     pkg = root / "reference_impl" / "flowtrack"
@@ -123,10 +156,14 @@ def build_autograder(
 
     with zipfile.ZipFile(tmp, "w") as zf:
         add(zf, "setup.sh", SETUP_SH, 0o755)
-        add(zf, "run_autograder", RUN_AUTOGRADER, 0o755)
+        add(zf, "run_autograder", RUN_AUTOGRADER.replace("@EXERCISES@", ",".join(ex_ids)), 0o755)
+        add(zf, "requirements-grader.txt", grader_requirements(root))
         if secret is not None:
             add(zf, "secret", secret, 0o600)
         add(zf, "flowtrack/pyproject.toml", (root / "pyproject.toml").read_text(encoding="utf-8"))
+        lic = root / "LICENSE"  # pyproject's license-files: the build fails without it
+        if lic.is_file():
+            add(zf, "flowtrack/LICENSE", lic.read_text(encoding="utf-8"))
         readme = root / "README.md"
         add(zf, "flowtrack/README.md", readme.read_text(encoding="utf-8") if readme.is_file() else "")
         for p in sorted(pkg.rglob("*")):
@@ -137,19 +174,71 @@ def build_autograder(
     return out
 
 
+def _exercise_ids(exercises) -> list[str]:
+    """Validated exercise ids from a list or a comma-separated string (``[]``: all)."""
+    if exercises is None:
+        return []
+    if isinstance(exercises, str):
+        exercises = exercises.split(",")
+    ids = [str(e).strip() for e in exercises if str(e).strip()]
+    from .exercises import EXERCISES, get_exercise
+
+    out = []
+    for i in ids:
+        try:
+            out.append(get_exercise(i).id)
+        except KeyError as exc:
+            short = [ex.id for ex in EXERCISES if ex.id.startswith(i + "_")]  # "ex05" -> "ex05_cv_model"
+            if len(short) != 1:
+                raise ValueError(f"exercises: {exc.args[0]}") from None
+            out.append(short[0])
+    return list(dict.fromkeys(out))
+
+
+def grader_requirements(root: str | os.PathLike | None = None) -> str:
+    """requirements.txt text of pyproject.toml's ``grader`` extra (what grading imports at run time)."""
+    import tomllib
+
+    root = Path(root) if root is not None else _package_root()
+    meta = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))
+    reqs = meta.get("project", {}).get("optional-dependencies", {}).get("grader")
+    if not reqs:
+        raise ValueError(f"pyproject.toml in {root} has no [project.optional-dependencies] grader extra")
+    return "\n".join(reqs) + "\n"
+
+
+class MetadataError(ValueError):
+    """``submission_metadata.json`` is missing or names no submitter."""
+
+
 def student_from_metadata(path: str | os.PathLike | None) -> str:
-    """The submitter's id from Gradescope's ``submission_metadata.json`` (``"submission"`` if none)."""
+    """The submitter's id from Gradescope's ``submission_metadata.json``.
+
+    The first user's ``id`` (else ``email``), made safe for a folder name. Hidden-test inputs are
+    seeded by it, so there is no silent default.
+
+    Raises
+    ------
+    MetadataError
+        No file, unreadable JSON, or no user id or e-mail in it.
+    """
     if path is None:
-        return "submission"
+        raise MetadataError("submission_metadata.json: no file given (--metadata or --student)")
     try:
         meta = json.loads(Path(path).read_text(encoding="utf-8"))
-        users = meta.get("users") or []
-        ident = users[0].get("id") or users[0].get("email") if users else None
-        ident = ident or meta.get("id")
-    except (OSError, ValueError, AttributeError, IndexError, TypeError):
-        return "submission"
-    name = _SAFE.sub("_", str(ident)) if ident else ""
-    return name[:120] or "submission"
+    except OSError as exc:
+        raise MetadataError(f"submission_metadata.json: cannot read {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        raise MetadataError(f"submission_metadata.json: {path} is not JSON: {exc}") from None
+    ident = None
+    if isinstance(meta, dict):
+        users = meta.get("users")
+        if isinstance(users, list) and users and isinstance(users[0], dict):
+            ident = users[0].get("id") or users[0].get("email")
+    name = _SAFE.sub("_", str(ident))[:120] if ident not in (None, "") else ""
+    if not name:
+        raise MetadataError(f"submission_metadata.json: {path} names no submitter (users[0].id or email)")
+    return name
 
 
 def run_submission(
@@ -196,20 +285,40 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--exercises", default=None, help="comma-separated exercise ids (default: all)")
     run.add_argument("--secret-file", default=None, help="the instructor's seed key (the zip's secret)")
     args = parser.parse_args(argv)
-    student = args.student or student_from_metadata(args.metadata)
-    exercises = None
-    if args.exercises:
-        from .exercises import get_exercise
+    try:
+        student = args.student or student_from_metadata(args.metadata)
+        exercises = None
+        if args.exercises:
+            from .exercises import get_exercise
 
-        exercises = [get_exercise(i.strip()) for i in args.exercises.split(",") if i.strip()]
-    secret = None
-    if args.secret_file:
-        from .spec import read_secret
+            exercises = [get_exercise(i) for i in _exercise_ids(args.exercises)]
+        secret = None
+        if args.secret_file:
+            from .spec import read_secret
 
-        secret = read_secret(args.secret_file)
+            secret = read_secret(args.secret_file)
+    except Exception as exc:  # issue 18: an explicit error result, never no results.json
+        return _error_result(args.results, f"autograder configuration error: {type(exc).__name__}: {exc}")
     data = run_submission(args.submission, args.results, student=student, exercises=exercises, secret=secret)
     print(f"flowtrack autograder: {student}: score {data.get('score', 0):g}", file=sys.stderr)
     return 0
+
+
+def _error_result(results: str | os.PathLike, message: str) -> int:
+    """Write a Gradescope error result (score 0, the message shown) and return exit status 1."""
+    from .grade import FORMAT, write_atomic
+
+    data = {
+        "score": 0.0,
+        "output": message + "\nThis is not a problem with your work; please tell your instructor.",
+        "visibility": "visible",
+        "stdout_visibility": "hidden",
+        "tests": [],
+        "extra_data": {"flowtrack": {"format": FORMAT, "error": message}},
+    }
+    write_atomic(Path(results), json.dumps(data, indent=1))
+    print(f"flowtrack autograder: {message}", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":  # pragma: no cover
