@@ -60,7 +60,7 @@ def run_grade(
 ) -> GradeRun:
     """Check the layout, grade, and write the class outputs (see the module docstring)."""
     from .classreport import write_class_outputs
-    from .grade import exercises_hash, submission_hash, grade_class, locate_notebook
+    from .grade import exercises_hash, grade_class, locate_notebook, submission_hash
     from .keys import describe_regrades, regrade_reasons
     from .layout import check_layout, rename_notes
     from .spec import secret_id

@@ -33,7 +33,8 @@ tests and lessons can compare the derivation with the numerical reference implem
   (Problem 4).
 
 The package mirrors the lessons: :mod:`~flowtrack.symbolic.camera` (lesson 1),
-:mod:`~flowtrack.symbolic.variational` and :mod:`~flowtrack.symbolic.rgbd` (2), :mod:`~flowtrack.symbolic.graph` (3),
+:mod:`~flowtrack.symbolic.variational` and :mod:`~flowtrack.symbolic.rgbd` (2),
+:mod:`~flowtrack.symbolic.graph` (3),
 :mod:`~flowtrack.symbolic.filtering` (4), :mod:`~flowtrack.symbolic.association` (5),
 :mod:`~flowtrack.symbolic.clustering` (6) and :mod:`~flowtrack.symbolic.five_languages` (7); every
 name is importable from ``flowtrack.symbolic`` itself.
