@@ -41,6 +41,7 @@ __all__ = [
     "SCENARIOS",
     "Body",
     "Box",
+    "ArcTrajectory",
     "Cylinder",
     "Frame",
     "PlanarTrajectory",
@@ -53,7 +54,7 @@ __all__ = [
     "ray_directions",
 ]
 
-SCENARIOS = ("default", "crossing", "occlusion", "mixed")
+SCENARIOS = ("default", "crossing", "occlusion", "mixed", "turning")
 
 _PALETTE = np.array(
     [
@@ -824,7 +825,7 @@ def _straight_trajectory(rng, p0, p1, duration, shape, opts) -> PlanarTrajectory
 
 
 #: Fewest moving objects each scripted scenario needs (its scripted objects are ids 1..n).
-_SCENARIO_MIN_OBJECTS = {"crossing": 2, "occlusion": 1, "mixed": 3}
+_SCENARIO_MIN_OBJECTS = {"crossing": 2, "occlusion": 1, "mixed": 3, "turning": 1}
 _LOW = (0.04, 0.04, 0.035)  # half extents of the low object that gets crossed
 _SMALL = (0.03, 0.03, 0.035)  # half extents of the small object that hides behind an occluder
 
@@ -865,7 +866,74 @@ def _scenario_script(scenario: str, kinds: Sequence[str]) -> tuple[dict, tuple |
         paths = {1: (s1, (-0.2, y1), (0.16, y1)), 2: (s2, (0.2, 0.22), (-0.2, 0.22)),
                  3: (s3, (-0.05, y3), (0.3, y3))}
         return paths, ((0.05, 0.02, 0.07), (0.15, 0.31))
+    if scenario == "turning":
+        return _turning_script(), None
     return {}, None
+
+
+# ----------------------------------------------------------------------------------------------
+# the turning scenario (issue 15): an object on a circular arc, turning with it
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ArcTrajectory:
+    r"""Rigid motion on a circle of the table: a constant rotation about a vertical axis.
+
+    The centre follows :math:`p(t) = c + \rho\,(\cos\phi(t), \sin\phi(t))` at height :math:`z`
+    with :math:`\phi(t) = \phi_0 + \omega t`, and the object turns with its path: heading
+    :math:`\phi(t) + \pi/2` (the tangent), so the whole body rotates at :math:`\omega` about the
+    vertical axis through :math:`c` (speed :math:`|\omega|\rho`, yaw rate :math:`\omega`). The
+    interface of :class:`PlanarTrajectory` (``position``, ``pose``).
+
+    Parameters
+    ----------
+    center : (float, float)
+        :math:`c`, world x-y (m).
+    radius : float
+        :math:`\rho` (m).
+    omega : float
+        Angular speed (rad/s), positive = counter-clockwise seen from above.
+    phase : float
+        :math:`\phi_0` (rad).
+    z : float
+        Height of the object's centre above the table.
+
+    Examples
+    --------
+    >>> tr = ArcTrajectory((0.0, 0.0), 1.0, omega=np.pi / 2, phase=0.0, z=0.1)
+    >>> np.round(tr.pose(1.0)[:3, 3], 12).tolist(), np.round(tr.pose(1.0)[:2, 0], 12).tolist()
+    ([0.0, 1.0, 0.1], [-1.0, 0.0])
+    """
+
+    center: tuple
+    radius: float
+    omega: float
+    phase: float
+    z: float
+
+    def position(self, t) -> np.ndarray:
+        """World position of the centre at time(s) ``t``: shape (3,) for a scalar, (len(t), 3) else."""
+        phi = self.phase + self.omega * np.asarray(t, dtype=float)
+        xy = np.stack([self.center[0] + self.radius * np.cos(phi), self.center[1] + self.radius * np.sin(phi)],
+                      axis=-1)
+        return np.concatenate([xy, np.full((*xy.shape[:-1], 1), float(self.z))], axis=-1)
+
+    def pose(self, t: float) -> np.ndarray:
+        """Object-to-world transform :math:`T_{wo}(t)`, shape (4, 4)."""
+        T = np.eye(4)
+        T[:3, :3] = _rot_z(self.phase + self.omega * t + np.pi / 2)
+        T[:3, 3] = self.position(t)
+        return T
+
+
+#: the turning object: an upright cylinder (its visible-surface centroid turns with its centre)
+_TURNING_SHAPE = (0.045, 0.045, 0.05)
+_TURNING_ARC = {"center": (0.0, 0.2), "radius": 0.13, "omega": 1.0, "phase": -np.pi / 2}
+
+
+def _turning_script() -> dict:
+    """Object 1 of the ``"turning"`` scenario: a cylinder going around an arc at 1 rad/s (0.13 m/s)."""
+    shape = _upright("cylinder", _TURNING_SHAPE)
+    return {1: (shape, ArcTrajectory(**_TURNING_ARC, z=shape.half_height))}
 
 
 def _static_occluder(half_extents: tuple, xy: tuple, T_cw: np.ndarray, duration: float, tex: float):
@@ -930,7 +998,9 @@ def make_scene(
         in the middle; needs ``n_objects >= 1``) or ``"mixed"`` (both at once, the demo's scene:
         objects 1 and 2 cross as in ``"crossing"`` on shorter paths, object 3 slides behind a
         static box on the right and is hidden for a few frames just after the middle; needs
-        ``n_objects >= 3``). Remaining objects move randomly.
+        ``n_objects >= 3``) or ``"turning"`` (object 1, a cylinder, goes around a circular arc of
+        radius 0.13 m at 1 rad/s, turning with it: :class:`ArcTrajectory`; needs
+        ``n_objects >= 1``). Remaining objects move randomly.
         ``shapes`` : sequence of ``"box"``/``"cylinder"`` per object (default: alternate, random
         start). ``speed`` : ``(low, high)`` translation speed range in m/s (default (0.06, 0.15)).
         ``max_angular_speed`` : rad/s (default 0.8). ``bend`` : maximal lateral bulge of a path
@@ -1022,9 +1092,10 @@ def make_scene(
         static_discs = [disc]
     trajectories: dict[int, PlanarTrajectory] = {}
     placed = []
-    for k, (shape, p0, p1) in paths.items():
+    for k, (shape, *path) in paths.items():
         objects[k] = shape
-        trajectories[k] = _straight_trajectory(rng, p0, p1, duration, shape, opts)
+        # a scripted path is (start, end) of a straight path, or a trajectory of its own (an arc)
+        trajectories[k] = path[0] if len(path) == 1 else _straight_trajectory(rng, *path, duration, shape, opts)
         placed.append((trajectories[k], shape.radius))
     trajectories.update(_random_trajectories(rng, objects, trajectories, duration, opts, placed, times,
                                              static_discs))
