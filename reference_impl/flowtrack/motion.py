@@ -153,8 +153,8 @@ class RigidMotion:
         out-of-plane axis.
     velocity_cov : numpy.ndarray, shape (D, D)
         Covariance of :attr:`velocity`: the residual covariance
-        :math:`\Sigma_e = \frac{1}{n - p}\sum_i e_i e_i^\top` (``p`` = 6 in 3-D, 3 in 2-D parameters
-        fitted) divided by the effective number of independent flow vectors
+        :math:`\Sigma_e = \frac{1}{n - p/D}\sum_i e_i e_i^\top` (``p`` = 6 in 3-D, 3 in 2-D parameters
+        fitted, i.e. p/D degrees of freedom per axis) divided by the effective number of independent flow vectors
         :math:`n_\mathrm{eff} = \min(n, n_\mathrm{max})` (neighbouring flow vectors of a smoothed field
         are correlated, so the :math:`1/n` of independent residuals would be overconfident), plus
         ``min_std**2 I``.
@@ -234,7 +234,7 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
     E = V - ((X @ (R - np.eye(D)).T) + t) / dt
     n = len(X)
     n_par = 6 if D == 3 else 3
-    Se = E.T @ E / max(n - n_par, 1)
+    Se = E.T @ E / max(n - n_par / D, 1)  # the fit's n_par parameters take n_par / D dof per axis
     cov = Se / min(n, n_max) + min_std**2 * np.eye(D)
     if D == 3:
         w = _rotation_vector(R) / dt
