@@ -433,7 +433,7 @@ def test_custom_associator_returning_lists():
     assert out[0].position[0] > 5.0 and out[1].position[0] < 5.0
 
 
-# ----------------------------------------------------------------------------- issue 15: scene flow in the tracker
+# ----------------------------------------------------------------------------- issue 15: flow in the tracker
 def _same_tracks(a, b, atol=1e-9):
     assert [t.id for t in a] == [t.id for t in b]
     assert [t.status for t in a] == [t.status for t in b]
@@ -464,7 +464,7 @@ def test_velocity_update_matches_filterpy_with_the_stacked_measurement():
     z1, v1 = np.array([1.04, 1.99]), np.array([0.35, -0.12])
     trk.step(z0[None], v0[None], Rv[None])
     out = trk.step(z1[None], v1[None], Rv[None])
-    F, H, Q, R = constant_velocity_model(dt, q, r, 2)
+    F, _, Q, R = constant_velocity_model(dt, q, r, 2)
     ref = FilterPyKF(dim_x=4, dim_z=4)
     ref.x = np.r_[z0, v0]
     ref.P = np.zeros((4, 4))
@@ -518,7 +518,8 @@ def test_nllr_association_tracks_through_misses_and_clutter():
     dt, sigma, extent, clutter_rate = 0.1, 0.05, 20.0, 2.0
     for seed in range(3):
         r = np.random.default_rng(seed)
-        _, frames, flows, gt = make_disturbed_scene(r, dt=dt, sigma=sigma, clutter_rate=clutter_rate, extent=extent)
+        _, frames, _, gt = make_disturbed_scene(r, dt=dt, sigma=sigma, clutter_rate=clutter_rate,
+                                                extent=extent)
         trk = MultiObjectTracker(dt, 1.0, sigma**2, velocity_var=4.0, p_detect=0.9,
                                  clutter_density=clutter_rate / extent**2)
         m = clear_mot(gt, run(trk, frames), max_dist=0.5)
@@ -530,7 +531,7 @@ def test_nllr_with_velocity_separates_crossing_objects_by_their_motion():
     dt, T = 0.1, 30
     t = np.arange(T) * dt
     a = np.stack([t - 1.5, 0.02 * np.ones(T)], axis=1)  # along +x
-    b = np.stack([np.zeros(T), 1.5 - t], axis=1) + [0.0, 0.0]  # along -y; both at ~(0, 0) at t = 1.5
+    b = np.stack([np.zeros(T), 1.5 - t], axis=1)  # along -y; both at ~(0, 0) at t = 1.5
     va, vb = np.array([1.0, 0.0]), np.array([0.0, -1.0])
     r = np.random.default_rng(3)
     frames = [np.stack([a[k], b[k]]) + 0.03 * r.normal(size=(2, 2)) for k in range(T)]
@@ -633,7 +634,8 @@ def test_tracks_csv_round_trip(tmp_path):
     n = write_tracks_csv(tmp_path / "tracks.csv", trk)
     with open(tmp_path / "tracks.csv", newline="") as fh:
         rows = list(csv.reader(fh))
-    assert tuple(rows[0]) == TRACKS_CSV_COLUMNS == ("frame", "track_id", "status", "x", "y", "z", "vx", "vy", "vz")
+    header = ("frame", "track_id", "status", "x", "y", "z", "vx", "vy", "vz")
+    assert tuple(rows[0]) == TRACKS_CSV_COLUMNS == header
     assert n == len(rows) - 1 == len(expected)
     assert {r[2] for r in rows[1:]} == {"tentative", "confirmed", "coasting"}
     for row, exp in zip(rows[1:], expected):

@@ -154,7 +154,8 @@ class RigidMotion:
     velocity_cov : numpy.ndarray, shape (D, D)
         Covariance of :attr:`velocity`: the residual covariance
         :math:`\Sigma_e = \frac{1}{n - p/D}\sum_i e_i e_i^\top` (``p`` = 6 in 3-D, 3 in 2-D parameters
-        fitted, i.e. p/D degrees of freedom per axis) divided by the effective number of independent flow vectors
+        fitted, i.e. p/D degrees of freedom per axis) divided by the effective number of independent flow
+        vectors
         :math:`n_\mathrm{eff} = \min(n, n_\mathrm{max})` (neighbouring flow vectors of a smoothed field
         are correlated, so the :math:`1/n` of independent residuals would be overconfident), plus
         ``min_std**2 I``.
@@ -494,9 +495,11 @@ class MotionBatchFilter:
             raise ValueError(f"model must be 'cv' or 'turn_rate', got {model!r}")
         self.model = model
         d = self.dim
-        F, H, Q, Rm = constant_velocity_model(self.dt, q, R, d)
+        F, _, Q, Rm = constant_velocity_model(self.dt, q, R, d)
         self.R = Rm
-        self.axis = None if (model == "cv" or d == 2) else _unit((0.0, 0.0, 1.0) if axis is None else axis, "axis")
+        self.axis = None
+        if model == "turn_rate" and d == 3:
+            self.axis = _unit((0.0, 0.0, 1.0) if axis is None else axis, "axis")
         if model == "cv":
             self.F, self.Q = F, Q
             self.n = 2 * d
@@ -598,8 +601,8 @@ class MotionBatchFilter:
         pos = mask & ~has_v
         if pos.any():
             g = np.flatnonzero(pos)
-            self.x[g], self.P[g] = _joseph(self.x[g], self.P[g], self.H, np.broadcast_to(self.R, (len(g), d, d)),
-                                           Z[g])
+            Rg = np.broadcast_to(self.R, (len(g), d, d))
+            self.x[g], self.P[g] = _joseph(self.x[g], self.P[g], self.H, Rg, Z[g])
         if has_v.any():
             g = np.flatnonzero(has_v)
             Rg = np.zeros((len(g), 2 * d, 2 * d))

@@ -913,8 +913,8 @@ class ArcTrajectory:
     def position(self, t) -> np.ndarray:
         """World position of the centre at time(s) ``t``: shape (3,) for a scalar, (len(t), 3) else."""
         phi = self.phase + self.omega * np.asarray(t, dtype=float)
-        xy = np.stack([self.center[0] + self.radius * np.cos(phi), self.center[1] + self.radius * np.sin(phi)],
-                      axis=-1)
+        cx, cy = self.center
+        xy = np.stack([cx + self.radius * np.cos(phi), cy + self.radius * np.sin(phi)], axis=-1)
         return np.concatenate([xy, np.full((*xy.shape[:-1], 1), float(self.z))], axis=-1)
 
     def pose(self, t: float) -> np.ndarray:
@@ -1095,7 +1095,10 @@ def make_scene(
     for k, (shape, *path) in paths.items():
         objects[k] = shape
         # a scripted path is (start, end) of a straight path, or a trajectory of its own (an arc)
-        trajectories[k] = path[0] if len(path) == 1 else _straight_trajectory(rng, *path, duration, shape, opts)
+        if len(path) == 1:
+            trajectories[k] = path[0]
+        else:
+            trajectories[k] = _straight_trajectory(rng, *path, duration, shape, opts)
         placed.append((trajectories[k], shape.radius))
     trajectories.update(_random_trajectories(rng, objects, trajectories, duration, opts, placed, times,
                                              static_discs))

@@ -351,10 +351,12 @@ class MultiObjectTracker:
         ``"turn_rate"``: the coordinated-turn model of :mod:`flowtrack.motion` (state
         ``[p, v, omega]``, an EKF), which extrapolates a turning object along its arc.
     q_omega, omega_var : float
-        Yaw-rate random walk ((rad/s)^2 per s) and initial yaw-rate variance of the turn-rate model.
+        Yaw-rate random walk ((rad/s)^2 per s, default 1) and initial yaw-rate variance ((rad/s)^2,
+        default 4) of the turn-rate model.
     turn_axis : array_like, shape (3,), optional
-        Normal of the plane of motion (3-D turn-rate model; default z), e.g. the table normal in the
-        camera frame.
+        Normal of the plane of motion (3-D turn-rate model; default z). In the camera frame pass the
+        table's (support plane's) normal: the camera's z is its optical axis, and a wrong plane turns
+        the velocity the wrong way.
 
     With any of ``velocity_update``, ``p_detect`` or ``motion_model="turn_rate"`` the tracker runs on
     a :class:`flowtrack.motion.MotionBatchFilter` and its own association and update (the
@@ -418,7 +420,7 @@ class MultiObjectTracker:
         velocity_clutter_density=1.0,
         motion_model="cv",
         q_omega=1.0,
-        omega_var=1.0,
+        omega_var=4.0,
         turn_axis=None,
     ):
         self.dt = positive(dt, "dt")
@@ -650,7 +652,7 @@ class MultiObjectTracker:
 # scene flow inside the tracker (issue 15): velocity measurements, NLLR association, turn-rate model
 # ----------------------------------------------------------------------------------------------------
 class _FlowOptions:
-    """The tracker's flow-aware predict / associate / update on a :class:`~flowtrack.motion.MotionBatchFilter`."""
+    """The tracker's flow-aware predict, associate and update (on a ``MotionBatchFilter``)."""
 
     def __init__(self, trk, R, flow_velocity_var, velocity_update, velocity_cov, p_detect, clutter_density,
                  velocity_clutter_density, motion_model, q_omega, omega_var, turn_axis):
