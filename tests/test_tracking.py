@@ -626,11 +626,17 @@ def test_tracks_csv_round_trip(tmp_path):
     trk = MultiObjectTracker(0.1, 1.0, 1e-4, dim=3, min_hits=2, max_misses=2)
     frames = [np.array([[0.01 * t, 0.0, 1.0]]) for t in range(4)] + [np.empty((0, 3))] * 2
     frames[1] = np.array([[0.01, 0.0, 1.0], [0.5, 0.5, 1.0]])  # a one-frame clutter detection: tentative
-    expected = []
+    expected, snapshots = [], []
     for t, Z in enumerate(frames):
         trk.step(Z)
+        snapshots.append(trk.tracks)
         for tr in trk.tracks:
             expected.append((t, tr.id, tr.status, *tr.position, *tr.velocity))
+    hist = trk.history()
+    assert [f for f, _ in hist] == list(range(len(frames)))
+    for (_, got), want in zip(hist, snapshots):
+        assert [(g.id, g.status, g.hits, g.misses, g.age) for g in got] == \
+            [(w.id, w.status, w.hits, w.misses, w.age) for w in want]
     n = write_tracks_csv(tmp_path / "tracks.csv", trk)
     with open(tmp_path / "tracks.csv", newline="") as fh:
         rows = list(csv.reader(fh))

@@ -456,6 +456,7 @@ class MultiObjectTracker:
             max_history = positive_int(max_history, "max_history")
         self._log: deque[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
         self._log = deque(maxlen=max_history)
+        self._counts: deque[np.ndarray] = deque(maxlen=max_history)  # per frame (3, M): hits, misses, age
         self._snapshot: list[Track] = []
         self._flow = None
         if velocity_update or p_detect is not None or clutter_density is not None or motion_model != "cv":
@@ -562,6 +563,7 @@ class MultiObjectTracker:
         Ps.flags.writeable = False
         codes = np.where(self._confirmed, np.where(self._misses > 0, 2, 1), 0)
         self._log.append((self.frame, self._ids.copy(), xs, Ps, codes))
+        self._counts.append(np.stack([self._hits, self._misses, self._age]))
         self._snapshot = list(
             map(
                 Track,
@@ -580,13 +582,14 @@ class MultiObjectTracker:
     def history(self) -> list[tuple[int, list[Track]]]:
         """Every recorded frame's live tracks, tentative ones included: ``[(frame, [Track, ...]), ...]``.
 
-        The rows that :func:`flowtrack.tracking_io.write_tracks_csv` writes; the tracks' ``hits`` and
-        ``age`` are not recorded per frame and are reported as -1 (``misses`` is 0 or, for a
-        coasting track, >= 1 as its status says).
+        The rows that :func:`flowtrack.tracking_io.write_tracks_csv` writes: each ``Track`` as
+        :meth:`step` saw it in that frame (state, status, hits, misses, age). With ``max_history``
+        only the frames kept are listed.
         """
         out = []
-        for frame, ids, xs, Ps, codes in self._log:
-            out.append((frame, [Track(int(t), xs[k], Ps[k], STATUSES[c], -1, int(c == 2), -1)
+        for (frame, ids, xs, Ps, codes), counts in zip(self._log, self._counts):
+            hits, misses, age = counts.tolist()
+            out.append((frame, [Track(t, xs[k], Ps[k], STATUSES[c], hits[k], misses[k], age[k])
                                 for k, (t, c) in enumerate(zip(ids.tolist(), codes.tolist()))]))
         return out
 
