@@ -409,3 +409,14 @@ def test_turning_scenario_is_a_rotation_about_a_vertical_axis_and_the_flow_fit_f
     c0, c1 = (T_cw @ np.r_[centres[0], 1.0])[:3], (T_cw @ np.r_[centres[4], 1.0])[:3]
     v0 = np.linalg.inv(T_wc)[:3, :3] @ np.r_[0.13 * 1.0 * np.array([-np.sin(phi[0]), np.cos(phi[0])]), 0.0]
     np.testing.assert_allclose(turn_rate_predict(np.r_[c0, v0, 1.0], 4 * scene.dt, up)[:3], c1, atol=1e-12)
+
+
+def test_rotation_spread_is_the_spread_of_the_rigid_velocity_over_the_cluster():
+    rng = np.random.default_rng(8)
+    X = rng.normal(size=(40, 3)) * [0.03, 0.02, 0.01]
+    w = np.array([0.0, 0.0, 0.8])
+    v = np.cross(w, X) + np.array([0.1, 0.0, 0.0])
+    a = rigid_motion_from_flow(X, v, 1e-5, min_std=0.0)
+    b = rigid_motion_from_flow(X, v, 1e-5, min_std=0.0, rotation_spread=True)
+    # independent: the empirical covariance of the (exactly rigid) velocities themselves
+    np.testing.assert_allclose(b.velocity_cov - a.velocity_cov, np.cov(v.T, bias=True), atol=1e-8)

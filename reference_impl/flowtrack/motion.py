@@ -187,7 +187,8 @@ class RigidMotion:
         return float(self.angular_velocity @ n)
 
 
-def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std=0.002) -> RigidMotion:
+def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std=0.002,
+                           rotation_spread=False) -> RigidMotion:
     r"""Fit the rigid motion of one cluster to its flow: Kabsch on :math:`X` and :math:`X + v\,\Delta t`.
 
     Parameters
@@ -202,6 +203,12 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
     min_std : float, >= 0
         Floor of the velocity standard deviation per axis (m/s), so that an exactly rigid flow
         (e.g. already projected on a rigid motion) still gets a positive-definite covariance.
+    rotation_spread : bool
+        Add the spread of the rigid velocity over the cluster,
+        :math:`\mathrm{Cov}_i[\Omega (X_i - \bar X)] = \Omega\,\mathrm{Cov}(X)\,\Omega^\top`
+        (:math:`\Omega = [\omega]_\times`, in 2-D the 90° rotation times :math:`\omega`): for a
+        track that follows the centroid of the *visible* surface, which is not a fixed body point,
+        so a spinning object's flow at the centroid is not its velocity.
 
     Returns
     -------
@@ -241,6 +248,9 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
         w = _rotation_vector(R) / dt
     else:
         w = np.array([np.arctan2(R[1, 0], R[0, 0]) / dt])
+    if rotation_spread:
+        Om = _cross_matrix(w) if D == 3 else w[0] * _cross_matrix(np.zeros(2))
+        cov = cov + Om @ np.cov(X.T, bias=True) @ Om.T
     return RigidMotion(R, t, dt, c, u, w, 0.5 * (cov + cov.T), float(np.sqrt((E**2).sum(1).mean())), n)
 
 

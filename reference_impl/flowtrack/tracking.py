@@ -722,11 +722,11 @@ class _FlowOptions:
         M, N = len(kf), len(Z)
         use_v = self.velocity_update and V is not None
         if use_v:
-            has_v = np.isfinite(V).all(axis=1) & np.isfinite(Rv).all(axis=(1, 2))
+            # joint innovation covariances per pair; a detection without a velocity is scored on its
+            # position alone (its velocity components are NaN, which masked_mahalanobis leaves out)
+            _, S, m = kf.joint_innovation(Z, V, Rv)
+            has_v = m == 2 * d
             Zj = np.concatenate([Z, np.where(has_v[:, None], V, np.nan)], axis=1)
-            S = np.broadcast_to(kf.P[:, None, : 2 * d, : 2 * d], (M, N, 2 * d, 2 * d)).copy()
-            S[:, :, :d, :d] += self.R
-            S[:, :, d:, d:] += np.where(has_v[:, None, None], np.nan_to_num(Rv), np.eye(d))[None]
             z_pred = kf.x[:, : 2 * d]
         else:
             has_v = np.zeros(N, dtype=bool)
