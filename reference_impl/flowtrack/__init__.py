@@ -7,6 +7,9 @@ The reference implementation of the flowtrack course. Modules:
 - :mod:`flowtrack.clustering` – motion clustering of scene flow into objects (Problem 5).
 - :mod:`flowtrack.kalman`, :mod:`flowtrack.bayes`, :mod:`flowtrack.particle` – Bayes filtering.
 - :mod:`flowtrack.association`, :mod:`flowtrack.tracking` – data association, multi-object tracker.
+- :mod:`flowtrack.motion` – rigid motion from flow, the turn-rate track model (EKF).
+- :mod:`flowtrack.tracking_io` – ``tracks.csv``; :mod:`flowtrack.tracking_eval` – scoring a tracker run,
+  the position-only vs flow-aided ablation.
 - :mod:`flowtrack.metrics` – CLEAR-MOT and identity metrics.
 - :mod:`flowtrack.synth` – synthetic RGB-D scenes with exact ground truth.
 - :mod:`flowtrack.realdata` – real data shipped inside installed packages (Middlebury Motorcycle).
@@ -30,6 +33,9 @@ _SUBMODULES = {
     "particle",
     "association",
     "tracking",
+    "motion",
+    "tracking_io",
+    "tracking_eval",
     "metrics",
     "synth",
     "realdata",

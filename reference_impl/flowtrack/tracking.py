@@ -25,6 +25,15 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
 
 Track ids come from a counter and are never reused.
 
+Scene flow can enter the filter beyond the birth velocity (issue 15; keyword arguments, off by
+default): ``velocity_update=True`` uses each detection's velocity (with its covariance,
+``step(..., velocity_covs=)``) as a measurement next to its position and gates the joint innovation;
+``p_detect`` and ``clutter_density`` associate by the negative log-likelihood ratio against clutter
+(:func:`flowtrack.association.nllr_cost`, the course's one association objective); and
+``motion_model="turn_rate"`` predicts with constant speed and yaw rate (:mod:`flowtrack.motion`, an
+EKF), so a turning object is extrapolated along its arc. :meth:`MultiObjectTracker.history` gives the
+per-frame tracks that :func:`flowtrack.tracking_io.write_tracks_csv` exports.
+
 The parts have tiny interfaces, in the spirit of Stone Soup, so a lesson can swap one:
 
 =================  =========================================================================
