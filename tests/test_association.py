@@ -349,3 +349,136 @@ def test_unvalidated_assignment_is_the_validated_one(rng, solver):
             assert np.isclose(cost[fast[0][:, 0], fast[0][:, 1]].sum(), total)
     with pytest.raises(ValueError, match="NaN"):
         solver(np.array([[np.nan]]), 1.0)
+
+
+# ----------------------------------------------------------------------------- issue 15: min_cost, NLLR
+def brute_force_min_cost(cost, gate):
+    """Least sum of admissible pair costs over all matchings (unmatched rows/columns cost 0)."""
+    M, N = cost.shape
+    ok = np.isfinite(cost) & (cost <= gate)
+    best = 0.0
+
+    def rec(i, used, total):
+        nonlocal best
+        if i == M:
+            best = min(best, total)
+            return
+        rec(i + 1, used, total)
+        for j in range(N):
+            if ok[i, j] and not used & (1 << j):
+                rec(i + 1, used | (1 << j), total + cost[i, j])
+
+    rec(0, 0, 0.0)
+    return best
+
+
+def test_assign_min_cost_against_brute_force(rng):
+    for _ in range(300):
+        M, N = rng.integers(0, 6, size=2)
+        cost = rng.normal(size=(M, N)) * 5.0
+        cost[rng.random(size=(M, N)) < 0.2] = np.inf
+        gate = rng.choice([np.inf, 3.0, -1.0])
+        matches, ut, ud = assign(cost, gate, objective="min_cost")
+        total = float(cost[matches[:, 0], matches[:, 1]].sum()) if len(matches) else 0.0
+        assert total == pytest.approx(brute_force_min_cost(cost, gate), abs=1e-9)
+        # a valid matching of admissible pairs, each lowering the sum
+        assert len(set(matches[:, 0].tolist())) == len(matches) == len(set(matches[:, 1].tolist()))
+        if len(matches):
+            c = cost[matches[:, 0], matches[:, 1]]
+            assert (c <= gate).all() and (c < 0).all()
+        assert sorted(ut.tolist() + matches[:, 0].tolist()) == list(range(M))
+        assert sorted(ud.tolist() + matches[:, 1].tolist()) == list(range(N))
+
+
+def test_assign_min_cost_worked_example():
+    """C = [[1, 9.5], [2, 50]], gamma = 10: the least sum of C - gamma is -9 with (0, 0) alone; the most pairs
+    (and solving ungated then discarding) give (0, 1), (1, 0) with -8.5."""
+    C = np.array([[1.0, 9.5], [2.0, 50.0]]) - 10.0
+    matches, ut, ud = assign(C, objective="min_cost")
+    assert matches.tolist() == [[0, 0]] and ut.tolist() == [1] and ud.tolist() == [1]
+    assert C[0, 0] == -9.0 == brute_force_min_cost(C, np.inf)
+    most, _, _ = assign(C)  # default objective: most pairs
+    assert most.tolist() == [[0, 1], [1, 0]] and C[0, 1] + C[1, 0] == -8.5
+    r, c = linear_sum_assignment(C)
+    assert C[r, c].sum() == -8.5  # solve-then-discard keeps both (both negative)
+
+
+def test_assign_default_objective_unchanged_and_bad_objective(rng):
+    cost = rng.random(size=(4, 5))
+    a = assign(cost, 0.5)
+    b = assign(cost, 0.5, objective="most_pairs")
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+    with pytest.raises(ValueError, match="objective"):
+        assign(cost, objective="fewest")
+
+
+def test_nllr_cost_against_scipy_logpdf(rng):
+    from scipy.stats import multivariate_normal
+
+    from flowtrack.association import nllr_cost
+
+    M, N, m = 3, 4, 4
+    z_pred = rng.normal(size=(M, m))
+    S = np.stack([[random_spd(rng, m) for _ in range(N)] for _ in range(M)])  # per pair
+    Z = rng.normal(size=(N, m))
+    Z[1, 2:] = np.nan  # detection 1: position only (no velocity)
+    lam = np.array([0.01, 0.2, 0.01, 0.03])
+    pd_ = 0.85
+    C = nllr_cost(z_pred, S, Z, pd_, lam)
+    for i in range(M):
+        for j in range(N):
+            o = ~np.isnan(Z[j])
+            logp = multivariate_normal(z_pred[i, o], S[i, j][np.ix_(o, o)]).logpdf(Z[j, o])
+            ref = -(np.log(pd_) + logp - np.log(lam[j] * (1 - pd_)))
+            assert C[i, j] == pytest.approx(ref, rel=1e-10, abs=1e-10)
+            # the normalised form 1/2 (d2 - gamma)
+            So = S[i, j][np.ix_(o, o)]
+            nu = Z[j, o] - z_pred[i, o]
+            d2 = nu @ np.linalg.solve(So, nu)
+            gamma = 2 * np.log(pd_ / ((1 - pd_) * lam[j] * np.sqrt(np.linalg.det(2 * np.pi * So))))
+            assert C[i, j] == pytest.approx(0.5 * (d2 - gamma), rel=1e-10, abs=1e-10)
+
+
+def test_nllr_cost_gates_on_the_joint_innovation_with_its_dof(rng):
+    from flowtrack.association import nllr_cost
+
+    z_pred = np.zeros((1, 4))
+    S = np.eye(4)[None]
+    g2, g4 = chi2.ppf(0.99, 2), chi2.ppf(0.99, 4)
+    # position-only detection just inside its 2-dof gate; joint detection just outside its 4-dof gate
+    Z = np.array([[np.sqrt(g2) - 1e-6, 0.0, np.nan, np.nan], [np.sqrt(g4) + 1e-6, 0.0, 0.0, 0.0],
+                  [0.0, 0.0, np.sqrt(g4) - 1e-6, 0.0]])
+    C = nllr_cost(z_pred, S, Z, 0.9, 1e-6, gate_prob=0.99)
+    assert np.isfinite(C[0, 0]) and np.isinf(C[0, 1]) and np.isfinite(C[0, 2])
+    # without gate_prob, nothing is inf
+    assert np.isfinite(nllr_cost(z_pred, S, Z, 0.9, 1e-6)).all()
+
+
+def test_nllr_cost_bad_input():
+    from flowtrack.association import nllr_cost
+
+    z, S, Z = np.zeros((1, 2)), np.eye(2)[None], np.zeros((2, 2))
+    with pytest.raises(ValueError, match="p_detect"):
+        nllr_cost(z, S, Z, 1.0, 0.1)
+    with pytest.raises(ValueError, match="clutter_density"):
+        nllr_cost(z, S, Z, 0.9, 0.0)
+    with pytest.raises(ValueError, match="clutter_density"):
+        nllr_cost(z, S, Z, 0.9, [0.1, 0.1, 0.1])
+    with pytest.raises(ValueError, match="S must have shape"):
+        nllr_cost(z, np.eye(3)[None], Z, 0.9, 0.1)
+    with pytest.raises(ValueError, match="without any measured"):
+        nllr_cost(z, S, np.full((1, 2), np.nan), 0.9, 0.1)
+    with pytest.raises(ValueError, match="S"):
+        nllr_cost(z, -np.eye(2)[None], Z, 0.9, 0.1)
+
+
+def test_nllr_association_prefers_clutter_to_a_far_pair():
+    """A pair is taken only when it beats "clutter + miss": with a low clutter density a far detection still
+    matches, with a high one it is left as clutter (a new track)."""
+    from flowtrack.association import nllr_cost
+
+    z_pred, S, Z = np.zeros((1, 2)), np.eye(2)[None], np.array([[2.5, 0.0]])
+    low = assign(nllr_cost(z_pred, S, Z, 0.9, 1e-4), objective="min_cost")[0]
+    high = assign(nllr_cost(z_pred, S, Z, 0.9, 1.0), objective="min_cost")[0]
+    assert low.tolist() == [[0, 0]] and high.shape == (0, 2)

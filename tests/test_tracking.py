@@ -431,3 +431,256 @@ def test_custom_associator_returning_lists():
     out = trk.step(np.array([[10.0, 0.0], [0.0, 0.0]]))  # swapped order: ids follow the order
     assert [t.id for t in out] == [0, 1]
     assert out[0].position[0] > 5.0 and out[1].position[0] < 5.0
+
+
+# ----------------------------------------------------------------------------- issue 15: flow in the tracker
+def _same_tracks(a, b, atol=1e-9):
+    assert [t.id for t in a] == [t.id for t in b]
+    assert [t.status for t in a] == [t.status for t in b]
+    for ta, tb in zip(a, b):
+        np.testing.assert_allclose(ta.x, tb.x, atol=atol)
+        np.testing.assert_allclose(ta.P, tb.P, atol=atol)
+
+
+def test_flow_mode_without_velocities_is_the_default_tracker():
+    """The flow-aware path (own filter, masked Mahalanobis, generic assign) reproduces the default one."""
+    r = np.random.default_rng(0)
+    _, frames, _, _ = make_disturbed_scene(r, n_frames=40)
+    a = MultiObjectTracker(0.1, 1.0, 0.05**2, velocity_var=4.0)
+    b = MultiObjectTracker(0.1, 1.0, 0.05**2, velocity_var=4.0, velocity_update=True)
+    for Z in frames:
+        a.step(Z)
+        b.step(Z)
+        _same_tracks(a.tracks, b.tracks)
+
+
+def test_velocity_update_matches_filterpy_with_the_stacked_measurement():
+    from filterpy.kalman import KalmanFilter as FilterPyKF
+
+    dt, q, r = 0.1, 0.5, 1e-3
+    Rv = np.array([[0.004, 0.001], [0.001, 0.002]])
+    trk = MultiObjectTracker(dt, q, r, dim=2, min_hits=1, velocity_update=True)
+    z0, v0 = np.array([1.0, 2.0]), np.array([0.3, -0.1])
+    z1, v1 = np.array([1.04, 1.99]), np.array([0.35, -0.12])
+    trk.step(z0[None], v0[None], Rv[None])
+    out = trk.step(z1[None], v1[None], Rv[None])
+    F, _, Q, R = constant_velocity_model(dt, q, r, 2)
+    ref = FilterPyKF(dim_x=4, dim_z=4)
+    ref.x = np.r_[z0, v0]
+    ref.P = np.zeros((4, 4))
+    ref.P[:2, :2], ref.P[2:, 2:] = R, Rv  # born with the measured velocity and its covariance
+    ref.F, ref.Q = F, Q
+    ref.H = np.eye(4)
+    ref.R = np.zeros((4, 4))
+    ref.R[:2, :2], ref.R[2:, 2:] = R, Rv
+    ref.predict()
+    ref.update(np.r_[z1, v1])
+    np.testing.assert_allclose(out[0].x, ref.x, atol=1e-12)
+    np.testing.assert_allclose(out[0].P, ref.P, atol=1e-12)
+
+
+def test_velocity_without_covariance_uses_velocity_cov_and_nan_rows_update_position_only():
+    from filterpy.kalman import KalmanFilter as FilterPyKF
+
+    dt, q, r = 0.1, 0.5, 1e-3
+    trk = MultiObjectTracker(dt, q, r, dim=2, min_hits=1, velocity_update=True, velocity_cov=0.01)
+    trk.step(np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]]))
+    out = trk.step(np.array([[0.11, 0.0]]), np.array([[np.nan, np.nan]]))  # no flow this frame
+    F, H, Q, R = constant_velocity_model(dt, q, r, 2)
+    ref = FilterPyKF(dim_x=4, dim_z=2)
+    ref.x = np.array([0.0, 0.0, 1.0, 0.0])
+    ref.P = np.diag([r, r, 0.01, 0.01])
+    ref.F, ref.Q, ref.H, ref.R = F, Q, H, R
+    ref.predict()
+    ref.update(np.array([0.11, 0.0]))
+    np.testing.assert_allclose(out[0].x, ref.x, atol=1e-12)
+    np.testing.assert_allclose(out[0].P, ref.P, atol=1e-12)
+
+
+def test_velocity_measurements_sharpen_the_velocity_estimate():
+    errs = {False: [], True: []}
+    for seed in range(4):
+        r = np.random.default_rng(seed)
+        truth, vel = simulate(3, 30, 0.1, 0.05, r, accel_std=0.2)
+        frames = [truth[t] + 0.05 * r.normal(size=truth[t].shape) for t in range(30)]
+        flows = [vel[t] + 0.05 * r.normal(size=vel[t].shape) for t in range(30)]
+        for use in (False, True):
+            trk = MultiObjectTracker(0.1, 0.2, 0.05**2, velocity_update=use, velocity_cov=0.05**2)
+            for t in range(30):
+                out = trk.step(frames[t], flows[t])
+            for tr in out:
+                k = np.argmin(np.linalg.norm(truth[-1] - tr.position, axis=1))
+                errs[use].append(np.linalg.norm(tr.velocity - vel[-1, k]))
+    assert np.mean(errs[True]) < 0.7 * np.mean(errs[False])
+
+
+def test_nllr_association_tracks_through_misses_and_clutter():
+    dt, sigma, extent, clutter_rate = 0.1, 0.05, 20.0, 2.0
+    for seed in range(3):
+        r = np.random.default_rng(seed)
+        _, frames, _, gt = make_disturbed_scene(r, dt=dt, sigma=sigma, clutter_rate=clutter_rate,
+                                                extent=extent)
+        trk = MultiObjectTracker(dt, 1.0, sigma**2, velocity_var=4.0, p_detect=0.9,
+                                 clutter_density=clutter_rate / extent**2)
+        m = clear_mot(gt, run(trk, frames), max_dist=0.5)
+        assert m["mota"] >= 0.9 and m["idf1"] >= 0.9, (seed, m)
+
+
+def test_nllr_with_velocity_separates_crossing_objects_by_their_motion():
+    """Two objects cross at the same point; positions alone are ambiguous at the crossing, flow is not."""
+    dt, T = 0.1, 30
+    t = np.arange(T) * dt
+    a = np.stack([t - 1.5, 0.02 * np.ones(T)], axis=1)  # along +x
+    b = np.stack([np.zeros(T), 1.5 - t], axis=1)  # along -y; both at ~(0, 0) at t = 1.5
+    va, vb = np.array([1.0, 0.0]), np.array([0.0, -1.0])
+    r = np.random.default_rng(3)
+    frames = [np.stack([a[k], b[k]]) + 0.03 * r.normal(size=(2, 2)) for k in range(T)]
+    flows = [np.stack([va, vb]) + 0.05 * r.normal(size=(2, 2)) for _ in range(T)]
+    gt = [{0: a[k], 1: b[k]} for k in range(T)]
+    trk = MultiObjectTracker(dt, 2.0, 0.03**2, velocity_update=True, velocity_cov=0.05**2, p_detect=0.95,
+                             clutter_density=0.01)
+    m = clear_mot(gt, run(trk, frames, flows), max_dist=0.3)
+    assert m["id_switches"] == 0 and m["mota"] >= 0.9, m
+
+
+def _circle(T, dt, rho=0.13, w=1.0, phi0=-np.pi / 2):
+    phi = phi0 + w * dt * np.arange(T)
+    p = rho * np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    v = rho * w * np.stack([-np.sin(phi), np.cos(phi)], axis=1)
+    return p, v
+
+
+def test_turn_rate_model_predicts_an_arc_better_than_constant_velocity():
+    dt, T, ahead = 0.1, 60, 5
+    p, v = _circle(T + ahead, dt)
+    r = np.random.default_rng(0)
+    frames = [p[k][None] + 0.002 * r.normal(size=(1, 2)) for k in range(T)]
+    flows = [v[k][None] + 0.005 * r.normal(size=(1, 2)) for k in range(T)]
+    err = {}
+    for model in ("cv", "turn_rate"):
+        trk = MultiObjectTracker(dt, 0.05, 0.002**2, min_hits=1, motion_model=model, velocity_update=True,
+                                 velocity_cov=0.005**2, q_omega=0.01)
+        e = []
+        for k in range(T):
+            trk.step(frames[k], flows[k])
+            if k >= 15:
+                x, _ = trk.predict_ahead(ahead)
+                e.append(np.linalg.norm(x[0, :2] - p[k + ahead]))
+        err[model] = np.mean(e)
+        if model == "turn_rate":
+            assert trk.tracks[0].yaw_rate == pytest.approx(1.0, abs=0.05)
+            assert trk.tracks[0].x.shape == (5,) and trk.tracks[0].velocity.shape == (2,)
+    assert err["turn_rate"] * 2 <= err["cv"], err
+
+
+def test_predict_ahead_of_the_default_tracker_is_F_to_the_n():
+    trk = MultiObjectTracker(0.1, 0.5, 1e-3, dim=2)
+    for k in range(3):
+        trk.step(np.array([[0.1 * k, 0.0], [1.0, 0.05 * k]]))
+    F, _, Q, _ = constant_velocity_model(0.1, 0.5, 1e-3, 2)
+    x, P = trk.predict_ahead(4)
+    F4 = np.linalg.matrix_power(F, 4)
+    for i, tr in enumerate(trk.tracks):
+        np.testing.assert_allclose(x[i], F4 @ tr.x, atol=1e-12)
+        Pr = tr.P
+        for _ in range(4):
+            Pr = F @ Pr @ F.T + Q
+        np.testing.assert_allclose(P[i], Pr, atol=1e-12)
+    np.testing.assert_allclose(trk.predict_ahead(0)[0], np.array([t.x for t in trk.tracks]))
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"p_detect": 0.9}, "together"),
+        ({"clutter_density": 0.1}, "together"),
+        ({"motion_model": "ctrv"}, "motion_model"),
+        ({"velocity_update": True, "velocity_cov": -1.0}, "velocity_cov"),
+        ({"velocity_update": True, "velocity_cov": np.eye(3)}, "velocity_cov"),
+        ({"p_detect": 1.0, "clutter_density": 0.1}, "p_detect"),
+    ],
+)
+def test_flow_options_reject_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        MultiObjectTracker(0.1, 1.0, 0.01, dim=2, **kwargs)
+
+
+def test_velocity_covs_bad_input():
+    with pytest.raises(ValueError, match="velocity_update"):
+        MultiObjectTracker(0.1, 1.0, 0.01).step(np.zeros((1, 2)), np.zeros((1, 2)), np.eye(2)[None])
+    trk = MultiObjectTracker(0.1, 1.0, 0.01, velocity_update=True)
+    with pytest.raises(ValueError, match="velocity_covs"):
+        trk.step(np.zeros((1, 2)), np.zeros((1, 2)), np.eye(3)[None])
+    with pytest.raises(ValueError, match="velocity_covs"):
+        trk.step(np.zeros((1, 2)), np.zeros((1, 2)), -np.eye(2)[None])
+    with pytest.raises(ValueError, match="needs velocities"):
+        trk.step(np.zeros((1, 2)), None, np.eye(2)[None])
+
+
+# ----------------------------------------------------------------------------- tracks.csv
+def test_tracks_csv_round_trip(tmp_path):
+    import csv
+
+    from flowtrack.tracking_io import TRACKS_CSV_COLUMNS, read_tracks_csv, write_tracks_csv
+
+    trk = MultiObjectTracker(0.1, 1.0, 1e-4, dim=3, min_hits=2, max_misses=2)
+    frames = [np.array([[0.01 * t, 0.0, 1.0]]) for t in range(4)] + [np.empty((0, 3))] * 2
+    frames[1] = np.array([[0.01, 0.0, 1.0], [0.5, 0.5, 1.0]])  # a one-frame clutter detection: tentative
+    expected, snapshots = [], []
+    for t, Z in enumerate(frames):
+        trk.step(Z)
+        snapshots.append(trk.tracks)
+        for tr in trk.tracks:
+            expected.append((t, tr.id, tr.status, *tr.position, *tr.velocity))
+    hist = trk.history()
+    assert [f for f, _ in hist] == list(range(len(frames)))
+    for (_, got), want in zip(hist, snapshots):
+        assert [(g.id, g.status, g.hits, g.misses, g.age) for g in got] == \
+            [(w.id, w.status, w.hits, w.misses, w.age) for w in want]
+    n = write_tracks_csv(tmp_path / "tracks.csv", trk)
+    with open(tmp_path / "tracks.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    header = ("frame", "track_id", "status", "x", "y", "z", "vx", "vy", "vz")
+    assert tuple(rows[0]) == TRACKS_CSV_COLUMNS == header
+    assert n == len(rows) - 1 == len(expected)
+    assert {r[2] for r in rows[1:]} == {"tentative", "confirmed", "coasting"}
+    for row, exp in zip(rows[1:], expected):
+        assert (int(row[0]), int(row[1]), row[2]) == exp[:3]
+        np.testing.assert_allclose([float(v) for v in row[3:]], exp[3:], rtol=0, atol=0)  # repr round-trips
+    back = read_tracks_csv(tmp_path / "tracks.csv")
+    assert [(b["frame"], b["track_id"], b["status"]) for b in back] == [e[:3] for e in expected]
+    # per-frame lists with the input frame indices given (e.g. the demo skipped nothing but starts at 0)
+    per_frame = []
+    trk2 = MultiObjectTracker(0.1, 1.0, 1e-4, dim=3)
+    for Z in frames:
+        trk2.step(Z)
+        per_frame.append(trk2.tracks)
+    write_tracks_csv(tmp_path / "b.csv", per_frame, frames=range(10, 16))
+    assert [r["frame"] for r in read_tracks_csv(tmp_path / "b.csv")] == [e[0] + 10 for e in expected]
+
+
+def test_tracks_csv_bad_input(tmp_path):
+    from flowtrack.tracking_io import read_tracks_csv, write_tracks_csv
+
+    with pytest.raises(ValueError, match="frames"):
+        write_tracks_csv(tmp_path / "a.csv", [[], []], frames=[0])
+    (tmp_path / "bad.csv").write_text("frame,id\n")
+    with pytest.raises(ValueError, match="header"):
+        read_tracks_csv(tmp_path / "bad.csv")
+
+
+def test_tracking_ablation_keys_and_flow_helping_on_noisy_positions():
+    from flowtrack.tracking_eval import tracking_ablation
+
+    r = np.random.default_rng(1)
+    truth, vel = simulate(3, 40, 0.1, 0.05, r, dim=3, extent=5.0, speed=0.5)
+    Z = [truth[t] + 0.02 * r.normal(size=truth[t].shape) for t in range(35)]
+    V = [vel[t] + 0.01 * r.normal(size=vel[t].shape) for t in range(35)]
+    gt = [{k: truth[t, k] for k in range(3)} for t in range(40)]
+    res = tracking_ablation(Z, V, None, gt, 0.1, q=0.05, r=0.02**2, ahead=5, max_dist=0.2,
+                            flow_options={"velocity_cov": 0.01**2})
+    assert set(res) == {"position_only", "flow_aided"}
+    for v in res.values():
+        assert {"mota", "idf1", "id_switches", "prediction_error_mm"} <= set(v)
+    assert res["flow_aided"]["prediction_error_mm"] < 0.8 * res["position_only"]["prediction_error_mm"]
+    assert res["flow_aided"]["id_switches"] == 0

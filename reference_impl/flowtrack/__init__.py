@@ -9,6 +9,9 @@ The reference implementation of the flowtrack course. Modules:
 - :mod:`flowtrack.kalman`, :mod:`flowtrack.bayes`, :mod:`flowtrack.particle` – Bayes filtering;
   :mod:`flowtrack.batch_kalman` – the Kalman filter for many tracks at once (re-exported by ``kalman``).
 - :mod:`flowtrack.association`, :mod:`flowtrack.tracking` – data association, multi-object tracker.
+- :mod:`flowtrack.motion` – rigid motion from flow, the turn-rate track model (EKF).
+- :mod:`flowtrack.tracking_io` – ``tracks.csv``; :mod:`flowtrack.tracking_eval` – scoring a tracker run,
+  the position-only vs flow-aided ablation.
 - :mod:`flowtrack.metrics` – CLEAR-MOT and identity metrics.
 - :mod:`flowtrack.synth` – synthetic RGB-D scenes with exact ground truth (a package: shapes, ray
   casting, scenarios, scenes).
@@ -38,6 +41,9 @@ _SUBMODULES = {
     "particle",
     "association",
     "tracking",
+    "motion",
+    "tracking_io",
+    "tracking_eval",
     "metrics",
     "synth",
     "datasets",

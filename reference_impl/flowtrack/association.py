@@ -40,6 +40,8 @@ __all__ = [
     "hungarian",
     "mahalanobis_cost",
     "mahalanobis_from_cholesky",
+    "masked_mahalanobis",
+    "nllr_cost",
 ]
 
 
@@ -270,7 +272,7 @@ def _assign(cost: np.ndarray, gate: float):
     return matches, np.flatnonzero(free_rows), np.flatnonzero(free_cols)
 
 
-def assign(cost, gate=np.inf, *, validate: bool = True):
+def assign(cost, gate=np.inf, *, objective="most_pairs", validate: bool = True):
     r"""Gated linear assignment: the most admissible pairs, then the least total cost.
 
     A pair ``(i, j)`` is *admissible* when ``cost[i, j] <= gate`` and ``cost[i, j]`` is finite
@@ -289,6 +291,18 @@ def assign(cost, gate=np.inf, *, validate: bool = True):
     ``cost = [[0, 6], [6, 11]]`` and ``gate = 10`` the ungated optimum ``(0,0), (1,1)`` (total 11)
     loses the pair ``(1,1)``, leaving one match, while ``(0,1), (1,0)`` (total 12) keeps two.
 
+    With ``objective="min_cost"`` the result instead minimises :math:`\sum_{ij} C_{ij} y_{ij}` over
+    the matchings of admissible pairs, an unmatched row or column costing 0: a pair is taken only if
+    it lowers the sum. That is the right objective for costs that are negative log-likelihood
+    *ratios* against "clutter / missed" (:func:`nllr_cost`), where a pair of positive cost is worse
+    than leaving both unmatched. The two objectives differ: with ``cost = [[1, 9.5], [2, 50]] - 10``
+    the most pairs are ``(0, 1), (1, 0)`` (total -8.5; also what solving the ungated problem and
+    discarding gives), the least cost is ``(0, 0)`` alone (total -9). It is solved exactly with
+    :func:`scipy.optimize.linear_sum_assignment` on :math:`\min(C_{ij}, 0)` (inadmissible pairs 0),
+    dropping the pairs of cost >= 0 from its result: a matching of the clipped problem without its
+    zero pairs is a matching of the original one of the same total, and no original matching has a
+    larger clipped total.
+
     Parameters
     ----------
     cost : array_like, shape (M, N)
@@ -296,6 +310,9 @@ def assign(cost, gate=np.inf, *, validate: bool = True):
         rejected. ``M`` or ``N`` may be 0.
     gate : float
         Pairs with ``cost > gate`` are never matched (default: no gate).
+    objective : {"most_pairs", "min_cost"}
+        ``"most_pairs"`` (default): the most admissible pairs, then the least total cost.
+        ``"min_cost"``: the least total cost, unmatched rows and columns costing 0.
     validate : bool
         ``False`` skips the checks of ``cost`` and ``gate`` (the tracker's hot path, which built
         ``cost`` itself): then ``cost`` must be a float ndarray of shape ``(M, N)`` without NaN or
@@ -327,10 +344,171 @@ def assign(cost, gate=np.inf, *, validate: bool = True):
     >>> matches, ut, ud = assign(np.array([[0.5, 50.0, 3.0]]), gate=9.21)
     >>> matches, ut, ud
     (array([[0, 0]]), array([], dtype=int64), array([1, 2]))
+    >>> assign(np.array([[1.0, 9.5], [2.0, 50.0]]) - 10.0, objective="min_cost")[0]
+    array([[0, 0]])
     """
     if validate:
         cost, gate = _check_cost_gate(cost, gate)
-    return _assign(cost, gate)
+    if objective == "most_pairs":
+        return _assign(cost, gate)
+    if objective == "min_cost":
+        return _min_cost_unchecked(cost, gate)
+    raise ValueError(f"objective must be 'most_pairs' or 'min_cost', got {objective!r}")
+
+
+def _min_cost_unchecked(cost: np.ndarray, gate: float):
+    """Least total cost over matchings of admissible pairs, unmatched rows/columns costing 0."""
+    M, N = cost.shape
+    if M == 0 or N == 0:
+        return _empty_result(M, N)
+    useful = np.isfinite(cost) & (cost <= gate) & (cost < 0)
+    clipped = np.where(useful, cost, 0.0)
+    r, c = linear_sum_assignment(clipped)
+    keep = useful[r, c]
+    rows, cols = r[keep], c[keep]
+    order = np.argsort(rows)
+    matches = np.stack([rows[order], cols[order]], axis=1).astype(np.intp).reshape(-1, 2)
+    free_rows = np.ones(M, dtype=bool)
+    free_cols = np.ones(N, dtype=bool)
+    free_rows[rows] = False
+    free_cols[cols] = False
+    return matches, np.flatnonzero(free_rows), np.flatnonzero(free_cols)
+
+
+# ----------------------------------------------------------------------------------------------------
+# one association objective: the negative log-likelihood ratio (issue 15)
+# ----------------------------------------------------------------------------------------------------
+def masked_mahalanobis(z_pred, S, Z):
+    r"""Squared Mahalanobis distances over the measured components of each detection.
+
+    A detection may leave components unmeasured (NaN), e.g. the velocity of a detection without
+    scene flow. For the pair ``(i, j)`` only the components :math:`o_j` that detection ``j``
+    measures count: the marginal of the Gaussian :math:`\mathcal N(\hat z_i, S_{ij})` on them,
+
+    .. math::  d^2_{ij} = (z_j - \hat z_i)_{o_j}^\top [S_{ij}]_{o_j o_j}^{-1} (z_j - \hat z_i)_{o_j},
+               \qquad \ell_{ij} = \ln\det [S_{ij}]_{o_j o_j},
+
+    with :math:`d^2_{ij} \sim \chi^2_{|o_j|}` for a correct pair.
+
+    Parameters
+    ----------
+    z_pred : array_like, shape (M, m)
+        Predicted (joint) measurements.
+    S : array_like, shape (M, m, m) or (M, N, m, m)
+        Innovation covariances per track, or per pair (when the measurement noise differs by
+        detection); symmetric positive definite on the measured blocks.
+    Z : array_like, shape (N, m)
+        Detections; NaN marks an unmeasured component (at least one component measured).
+
+    Returns
+    -------
+    d2 : numpy.ndarray, shape (M, N)
+    logdet : numpy.ndarray, shape (M, N)
+    dof : numpy.ndarray of int, shape (N,)
+        :math:`|o_j|`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> d2, ld, dof = masked_mahalanobis(np.zeros((1, 2)), 4.0 * np.eye(2)[None], np.array([[2.0, np.nan]]))
+    >>> d2, np.exp(ld), dof
+    (array([[1.]]), array([[4.]]), array([1]))
+    """
+    z_pred = as_array(z_pred, "z_pred", ("M", "m"))
+    M, m = z_pred.shape
+    Z = as_array(Z, "Z", ("N", m), allow_nan=True)
+    N = Z.shape[0]
+    S = as_array(S, "S")
+    if S.shape == (M, m, m):
+        S = np.broadcast_to(S[:, None], (M, N, m, m))
+    elif S.shape != (M, N, m, m):
+        raise ValueError(f"S must have shape ({M}, {m}, {m}) or ({M}, {N}, {m}, {m}), got {S.shape}")
+    seen = ~np.isnan(Z)
+    dof = seen.sum(axis=1)
+    if N and (dof == 0).any():
+        raise ValueError("Z has a row without any measured (non-NaN) component")
+    d2 = np.zeros((M, N))
+    logdet = np.zeros((M, N))
+    if M == 0 or N == 0:
+        return d2, logdet, dof
+    patterns, which = np.unique(seen, axis=0, return_inverse=True)
+    for k, pat in enumerate(patterns):
+        cols = np.flatnonzero(which.ravel() == k)
+        o = np.flatnonzero(pat)
+        Ssub = S[:, cols][:, :, o][..., o]  # (M, n_k, |o|, |o|)
+        check_symmetric(Ssub, "S", atol=1e-12)
+        L = cholesky(Ssub, "S")
+        nu = Z[cols][:, o][None] - z_pred[:, o][:, None]  # (M, n_k, |o|)
+        y = np.linalg.solve(L, nu[..., None])[..., 0]
+        d2[:, cols] = (y * y).sum(axis=-1)
+        logdet[:, cols] = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
+    return d2, logdet, dof
+
+
+def nllr_cost(z_pred, S, Z, p_detect, clutter_density, gate_prob=None):
+    r"""Negative log-likelihood ratio of "detection j comes from track i" against "clutter or new".
+
+    With detection probability :math:`P_D` and clutter (false alarm / newborn object) density
+    :math:`\lambda_c` in measurement space, the global-nearest-neighbour association maximises the
+    likelihood ratio of a joint hypothesis against "everything is clutter and every track missed";
+    its log is a sum over the pairs of
+
+    .. math::  C_{ij} = -\ln\frac{P_D\,\mathcal N(z_j; \hat z_i, S_{ij})}{\lambda_c (1 - P_D)}
+                      = \tfrac12\left(d^2_{ij} - \gamma_{ij}\right), \qquad
+               \gamma_{ij} = 2\ln\frac{P_D}{(1 - P_D)\,\lambda_c\sqrt{\det(2\pi S_{ij})}},
+
+    (:math:`d^2_{ij}` the squared Mahalanobis distance of the innovation), minimised with
+    ``assign(C, objective="min_cost")``: a pair is taken only when it is more likely than
+    clutter-plus-miss (:math:`C_{ij} < 0`, i.e. :math:`d^2_{ij} < \gamma_{ij}`), and among the
+    matchings the one of least total :math:`C`. The :math:`\ln\det S` inside :math:`\gamma` makes
+    an uncertain (newborn) track pay for its spread, so it cannot steal the detection of an
+    established one; the :math:`\lambda_c` and :math:`P_D` terms set how far a detection may be before
+    it is better explained as clutter. A detection that carries a velocity (scene flow) is scored on
+    the joint innovation ``[position, velocity]`` (its measured components, see
+    :func:`masked_mahalanobis`); then :math:`\lambda_c` is a density in the joint space (e.g. the
+    position density times a velocity density), which ``clutter_density`` may give per detection.
+
+    Parameters
+    ----------
+    z_pred : array_like, shape (M, m)
+    S : array_like, shape (M, m, m) or (M, N, m, m)
+    Z : array_like, shape (N, m)
+        NaN marks unmeasured components (e.g. no velocity).
+    p_detect : float
+        :math:`P_D`, ``0 < p_detect < 1``.
+    clutter_density : float or array_like, shape (N,)
+        :math:`\lambda_c > 0` per unit volume of the detection's measured components.
+    gate_prob : float, optional
+        Also gate on the joint innovation: pairs with :math:`d^2_{ij} > F^{-1}_{\chi^2_{m_j}}(p)`
+        (``m_j`` = measured components of detection j) get ``inf``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, N)
+        :math:`C_{ij}` (``inf`` outside the gate).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> C = nllr_cost(np.zeros((1, 2)), np.eye(2)[None], np.array([[0.0, 0.0], [3.0, 0.0]]),
+    ...               p_detect=0.9, clutter_density=0.01)
+    >>> np.round(C, 3)   # -ln(0.9 / (2 pi) / (0.01 * 0.1)) = -4.965; the second: + 9/2
+    array([[-4.965, -0.465]])
+    """
+    d2, logdet, dof = masked_mahalanobis(z_pred, S, Z)
+    pd = probability(p_detect, "p_detect")
+    lam = as_array(clutter_density, "clutter_density")
+    if lam.ndim == 0:
+        lam = np.full(d2.shape[1], float(lam))
+    elif lam.shape != (d2.shape[1],):
+        raise ValueError(f"clutter_density must be a number or of shape ({d2.shape[1]},), got {lam.shape}")
+    if (lam <= 0).any():
+        raise ValueError("clutter_density must be > 0")
+    cost = 0.5 * d2 + 0.5 * (logdet + dof * np.log(2.0 * np.pi)) - np.log(pd / ((1.0 - pd) * lam))
+    if gate_prob is not None:
+        gates = np.array([chi2_gate(int(k), gate_prob) for k in dof]) if dof.size else np.zeros(0)
+        cost = np.where(d2 <= gates[None, :], cost, np.inf)
+    return cost
 
 
 def greedy_assign(cost, gate=np.inf, *, validate: bool = True):

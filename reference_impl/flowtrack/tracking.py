@@ -25,6 +25,15 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
 
 Track ids come from a counter and are never reused.
 
+Scene flow can enter the filter beyond the birth velocity (issue 15; keyword arguments, off by
+default): ``velocity_update=True`` uses each detection's velocity (with its covariance,
+``step(..., velocity_covs=)``) as a measurement next to its position and gates the joint innovation;
+``p_detect`` and ``clutter_density`` associate by the negative log-likelihood ratio against clutter
+(:func:`flowtrack.association.nllr_cost`, the course's one association objective); and
+``motion_model="turn_rate"`` predicts with constant speed and yaw rate (:mod:`flowtrack.motion`, an
+EKF), so a turning object is extrapolated along its arc. :meth:`MultiObjectTracker.history` gives the
+per-frame tracks that :func:`flowtrack.tracking_io.write_tracks_csv` exports.
+
 The parts have tiny interfaces, in the spirit of Stone Soup, so a lesson can swap one:
 
 =================  =========================================================================
@@ -124,7 +133,12 @@ class Track:
     @property
     def velocity(self) -> np.ndarray:
         """Estimated velocity, shape (dim,)."""
-        return self.x[self.dim :]
+        return self.x[self.dim : 2 * self.dim]
+
+    @property
+    def yaw_rate(self) -> float | None:
+        """Yaw rate (rad/s) of the turn-rate model (state ``[p, v, omega]``), else None."""
+        return float(self.x[-1]) if self.x.shape[0] % 2 else None
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -319,6 +333,39 @@ class MultiObjectTracker:
     max_history : int, optional
         Keep the posterior of the last ``max_history`` frames for :meth:`trajectories` (default:
         all frames; the memory grows by about ``M * (2d + 4d^2) * 8`` bytes per frame).
+    velocity_update : bool, optional
+        Use the detections' velocities (scene flow) as measurements in the update, not only to start
+        tracks (default False: today's behaviour). A detection with a velocity and a velocity
+        covariance updates its track with the stacked position-velocity measurement, one without
+        with its position alone (Joseph form, :class:`flowtrack.motion.MotionBatchFilter`), and the
+        association scores and gates the joint innovation (chi-square with 2 ``dim`` degrees of
+        freedom for such a detection, ``dim`` for the others).
+    velocity_cov : float or array_like, shape (dim, dim), optional
+        Velocity measurement covariance of the detections for which :meth:`step` gets no
+        ``velocity_covs`` (default: ``flow_velocity_var * I``).
+    p_detect, clutter_density : float, optional
+        Associate by the negative log-likelihood ratio (:func:`flowtrack.association.nllr_cost`,
+        ``assign(..., objective="min_cost")``) with detection probability ``p_detect`` and clutter
+        density ``clutter_density`` (per m^dim); both or neither. Default: the Mahalanobis
+        :class:`GNNAssociator`.
+    velocity_clutter_density : float
+        Clutter density in velocity space (per (m/s)^dim) for detections that carry a velocity
+        (their joint clutter density is the product); default 1.
+    motion_model : {"cv", "turn_rate"}
+        ``"turn_rate"``: the coordinated-turn model of :mod:`flowtrack.motion` (state
+        ``[p, v, omega]``, an EKF), which extrapolates a turning object along its arc.
+    q_omega, omega_var : float
+        Yaw-rate random walk ((rad/s)^2 per s, default 1) and initial yaw-rate variance ((rad/s)^2,
+        default 4) of the turn-rate model.
+    turn_axis : array_like, shape (3,), optional
+        Normal of the plane of motion (3-D turn-rate model; default z). In the camera frame pass the
+        table's (support plane's) normal: the camera's z is its optical axis, and a wrong plane turns
+        the velocity the wrong way.
+
+    With any of ``velocity_update``, ``p_detect`` or ``motion_model="turn_rate"`` the tracker runs on
+    a :class:`flowtrack.motion.MotionBatchFilter` and its own association and update (the
+    ``predictor``, ``associator`` and ``updater`` parts are then not used; ``initiator`` and
+    ``deleter`` are).
     predictor, associator, updater, initiator, deleter : optional
         Replacement parts (see the module docstring); defaults :class:`KalmanPredictor`,
         :class:`GNNAssociator` ``(gate_prob)``, :class:`KalmanUpdater`,
@@ -370,6 +417,15 @@ class MultiObjectTracker:
         initiator=None,
         deleter=None,
         max_history=None,
+        velocity_update=False,
+        velocity_cov=None,
+        p_detect=None,
+        clutter_density=None,
+        velocity_clutter_density=1.0,
+        motion_model="cv",
+        q_omega=1.0,
+        omega_var=4.0,
+        turn_axis=None,
     ):
         self.dt = positive(dt, "dt")
         self.q = nonnegative(q, "q")
@@ -404,7 +460,14 @@ class MultiObjectTracker:
             max_history = positive_int(max_history, "max_history")
         self._log: deque[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
         self._log = deque(maxlen=max_history)
+        self._counts: deque[np.ndarray] = deque(maxlen=max_history)  # per frame (3, M): hits, misses, age
         self._snapshot: list[Track] = []
+        self._flow = None
+        if velocity_update or p_detect is not None or clutter_density is not None or motion_model != "cv":
+            self._flow = _FlowOptions(self, R, flow_velocity_var, velocity_update, velocity_cov, p_detect,
+                                      clutter_density, velocity_clutter_density, motion_model, q_omega,
+                                      omega_var, turn_axis)
+            self.kf = self._flow.make_filter()
 
     # -- input ---------------------------------------------------------------------------------------
     def _check_detections(self, detections, velocities):
@@ -426,7 +489,7 @@ class MultiObjectTracker:
         return Z, V
 
     # -- the loop ------------------------------------------------------------------------------------
-    def step(self, detections, velocities=None) -> list[Track]:
+    def step(self, detections, velocities=None, velocity_covs=None) -> list[Track]:
         """Process one frame of detections; return the reported (confirmed or coasting) tracks.
 
         Parameters
@@ -437,6 +500,9 @@ class MultiObjectTracker:
             Per-detection velocity (e.g. the mean scene flow of the detection's cluster); used
             only to initialise the velocity of tracks born from these detections. A row of NaN
             marks a detection without a velocity (inf is rejected).
+        velocity_covs : array_like, shape (N, dim, dim), optional
+            Covariance of each velocity (e.g. :func:`flowtrack.motion.detection_velocity_covariances`),
+            used with ``velocity_update=True``; a NaN row falls back to ``velocity_cov``.
 
         Returns
         -------
@@ -449,15 +515,23 @@ class MultiObjectTracker:
             ``detections`` or ``velocities`` of the wrong shape or containing NaN/inf.
         """
         Z, V = self._check_detections(detections, velocities)
+        Rv = None
+        if self._flow is not None:
+            Rv = self._flow.velocity_covariances(Z, V, velocity_covs)
+        elif velocity_covs is not None:
+            raise ValueError("velocity_covs needs MultiObjectTracker(..., velocity_update=True)")
         self.frame += 1
         kf = self.kf
         # 1. predict; 2. associate; 3. update
-        z_pred, S = self.predictor.predict(kf)
-        matches, unmatched_tracks, unmatched_dets = self.associator.associate(z_pred, S, Z)
-        matches = np.asarray(matches, dtype=np.intp).reshape(-1, 2)
-        unmatched_tracks = np.asarray(unmatched_tracks, dtype=np.intp)
-        unmatched_dets = np.asarray(unmatched_dets, dtype=np.intp)
-        self.updater.update(kf, Z, matches)
+        if self._flow is None:
+            z_pred, S = self.predictor.predict(kf)
+            matches, unmatched_tracks, unmatched_dets = self.associator.associate(z_pred, S, Z)
+            matches = np.asarray(matches, dtype=np.intp).reshape(-1, 2)
+            unmatched_tracks = np.asarray(unmatched_tracks, dtype=np.intp)
+            unmatched_dets = np.asarray(unmatched_dets, dtype=np.intp)
+            self.updater.update(kf, Z, matches)
+        else:
+            matches, unmatched_tracks, unmatched_dets = self._flow.predict_associate_update(Z, V, Rv)
         # 4. bookkeeping: hits, misses, confirmation
         matched = matches[:, 0]
         self._hits[matched] += 1
@@ -477,6 +551,8 @@ class MultiObjectTracker:
         if unmatched_dets.size:
             k = unmatched_dets.size
             x0, P0 = self.initiator.initiate(Z[unmatched_dets], None if V is None else V[unmatched_dets])
+            if self._flow is not None:
+                x0, P0 = self._flow.birth_states(x0, P0, None if Rv is None else Rv[unmatched_dets])
             kf.append(x0, P0)
             self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + k)])
             self._next_id += k
@@ -491,6 +567,7 @@ class MultiObjectTracker:
         Ps.flags.writeable = False
         codes = np.where(self._confirmed, np.where(self._misses > 0, 2, 1), 0)
         self._log.append((self.frame, self._ids.copy(), xs, Ps, codes))
+        self._counts.append(np.stack([self._hits, self._misses, self._age]))
         self._snapshot = list(
             map(
                 Track,
@@ -506,6 +583,35 @@ class MultiObjectTracker:
         return [t for t in self._snapshot if t.status != "tentative"]
 
     # -- accessors -----------------------------------------------------------------------------------
+    def history(self) -> list[tuple[int, list[Track]]]:
+        """Every recorded frame's live tracks, tentative ones included: ``[(frame, [Track, ...]), ...]``.
+
+        The rows that :func:`flowtrack.tracking_io.write_tracks_csv` writes: each ``Track`` as
+        :meth:`step` saw it in that frame (state, status, hits, misses, age). With ``max_history``
+        only the frames kept are listed.
+        """
+        out = []
+        for (frame, ids, xs, Ps, codes), counts in zip(self._log, self._counts):
+            hits, misses, age = counts.tolist()
+            out.append((frame, [Track(t, xs[k], Ps[k], STATUSES[c], hits[k], misses[k], age[k])
+                                for k, (t, c) in enumerate(zip(ids.tolist(), codes.tolist()))]))
+        return out
+
+    def predict_ahead(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """The live tracks' prior ``steps`` frames ahead, without updates: ``(x (M, n), P (M, n, n))``.
+
+        Rows follow :attr:`tracks`. The filter itself is not changed.
+        """
+        steps = positive_int(steps, "steps", minimum=0)
+        if self._flow is not None:
+            return self.kf.predicted(steps)
+        import copy
+
+        kf = copy.deepcopy(self.kf)
+        for _ in range(steps):
+            kf.predict()
+        return kf.x.copy(), kf.P.copy()
+
     @property
     def tracks(self) -> list[Track]:
         """All live tracks after the last :meth:`step`, tentative ones included, in order of id."""
@@ -547,3 +653,128 @@ class MultiObjectTracker:
             + ", ".join(f"{k}={v}" for k, v in counts.items())
             + ")"
         )
+
+
+# ----------------------------------------------------------------------------------------------------
+# scene flow inside the tracker (issue 15): velocity measurements, NLLR association, turn-rate model
+# ----------------------------------------------------------------------------------------------------
+class _FlowOptions:
+    """The tracker's flow-aware predict, associate and update (on a ``MotionBatchFilter``)."""
+
+    def __init__(self, trk, R, flow_velocity_var, velocity_update, velocity_cov, p_detect, clutter_density,
+                 velocity_clutter_density, motion_model, q_omega, omega_var, turn_axis):
+        from ._validation import check_psd
+
+        d = trk.dim
+        self.trk = trk
+        self.R = R
+        self.velocity_update = bool(velocity_update)
+        if velocity_cov is None:
+            Rv = float(flow_velocity_var) * np.eye(d)
+        else:
+            Rv = as_array(velocity_cov, "velocity_cov")
+            if Rv.ndim == 0:
+                Rv = positive(float(Rv), "velocity_cov") * np.eye(d)
+            elif Rv.shape != (d, d):
+                raise ValueError(f"velocity_cov must be a number or of shape ({d}, {d}), got {Rv.shape}")
+            check_psd(Rv, "velocity_cov", strict=True)
+        self.Rv = Rv
+        if (p_detect is None) != (clutter_density is None):
+            raise ValueError("p_detect and clutter_density must be given together")
+        self.nllr = p_detect is not None
+        if self.nllr:
+            self.p_detect = probability(p_detect, "p_detect")
+            self.clutter_density = positive(clutter_density, "clutter_density")
+            self.velocity_clutter_density = positive(velocity_clutter_density, "velocity_clutter_density")
+        if motion_model not in ("cv", "turn_rate"):
+            raise ValueError(f"motion_model must be 'cv' or 'turn_rate', got {motion_model!r}")
+        self.motion_model = motion_model
+        self.q_omega = nonnegative(q_omega, "q_omega")
+        self.omega_var = positive(omega_var, "omega_var")
+        self.turn_axis = turn_axis
+
+    def make_filter(self):
+        from .motion import MotionBatchFilter
+
+        t = self.trk
+        return MotionBatchFilter(t.dt, t.q, self.R, t.dim, model=self.motion_model, q_omega=self.q_omega,
+                                 axis=self.turn_axis)
+
+    def velocity_covariances(self, Z, V, velocity_covs):
+        """Per-detection velocity covariance (N, d, d), NaN rows where no velocity is used; or None."""
+        from .motion import check_velocity_covs
+
+        N, d = Z.shape
+        if velocity_covs is not None and V is None:
+            raise ValueError("velocity_covs needs velocities")
+        if V is None:
+            return None
+        Rv = np.broadcast_to(self.Rv, (N, d, d)).copy()
+        if velocity_covs is not None:
+            given = check_velocity_covs(velocity_covs, N, d)
+            ok = np.isfinite(given).all(axis=(1, 2))
+            Rv[ok] = given[ok]
+        Rv[np.isnan(V).any(axis=1)] = np.nan
+        return Rv
+
+    def predict_associate_update(self, Z, V, Rv):
+        from .association import assign, masked_mahalanobis, nllr_cost
+
+        kf = self.trk.kf
+        d = self.trk.dim
+        kf.predict()
+        M, N = len(kf), len(Z)
+        use_v = self.velocity_update and V is not None
+        if use_v:
+            # joint innovation covariances per pair; a detection without a velocity is scored on its
+            # position alone (its velocity components are NaN, which masked_mahalanobis leaves out)
+            _, S, m = kf.joint_innovation(Z, V, Rv)
+            has_v = m == 2 * d
+            Zj = np.concatenate([Z, np.where(has_v[:, None], V, np.nan)], axis=1)
+            z_pred = kf.x[:, : 2 * d]
+        else:
+            has_v = np.zeros(N, dtype=bool)
+            Zj = Z
+            z_pred, S = kf.predicted_measurements()
+        if M == 0 or N == 0:
+            matches, ut, ud = assign(np.zeros((M, N)))
+        elif self.nllr:
+            lam = np.where(has_v, self.clutter_density * self.velocity_clutter_density, self.clutter_density)
+            cost = nllr_cost(z_pred, S, Zj, self.p_detect, lam, gate_prob=self.trk.gate_prob)
+            matches, ut, ud = assign(cost, objective="min_cost")
+        else:
+            d2, logdet, dof = masked_mahalanobis(z_pred, S, Zj)
+            gates = np.array([chi2_gate(int(k), self.trk.gate_prob) for k in dof])
+            cost = np.where(d2 <= gates[None, :], d2 + logdet, np.inf)
+            matches, ut, ud = assign(cost)
+        if matches.shape[0]:
+            Zm = np.full((M, d), np.nan)
+            Zm[matches[:, 0]] = Z[matches[:, 1]]
+            mask = np.zeros(M, dtype=bool)
+            mask[matches[:, 0]] = True
+            if use_v:
+                Vm = np.full((M, d), np.nan)
+                Rvm = np.full((M, d, d), np.nan)
+                Vm[matches[:, 0]] = V[matches[:, 1]]
+                Rvm[matches[:, 0]] = Rv[matches[:, 1]]
+                kf.update_joint(Zm, Vm, Rvm, mask)
+            else:
+                kf.update_joint(Zm, None, None, mask)
+        return matches, ut, ud
+
+    def birth_states(self, x0, P0, Rv):
+        """Extend the initiator's ``[p, v]`` states: velocity covariance = the measured one, yaw rate 0."""
+        d = self.trk.dim
+        if self.velocity_update and Rv is not None:
+            ok = np.isfinite(Rv).all(axis=(1, 2))
+            P0 = P0.copy()
+            P0[ok, d:, d:] = Rv[ok]
+        if self.motion_model == "cv":
+            return x0, P0
+        k, n = x0.shape
+        x1 = np.zeros((k, n + 1))
+        x1[:, :n] = x0
+        P1 = np.zeros((k, n + 1, n + 1))
+        P1[:, :n, :n] = P0
+        P1[:, n, n] = self.omega_var
+        return x1, P1

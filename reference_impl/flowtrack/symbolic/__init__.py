@@ -35,7 +35,8 @@ tests and lessons can compare the derivation with the numerical reference implem
 The package mirrors the lessons: :mod:`~flowtrack.symbolic.camera` (lesson 1),
 :mod:`~flowtrack.symbolic.variational` and :mod:`~flowtrack.symbolic.rgbd` (2),
 :mod:`~flowtrack.symbolic.graph` (3),
-:mod:`~flowtrack.symbolic.filtering` (4), :mod:`~flowtrack.symbolic.association` (5),
+:mod:`~flowtrack.symbolic.filtering` (4), :mod:`~flowtrack.symbolic.motion` (6),
+:mod:`~flowtrack.symbolic.association` (5),
 :mod:`~flowtrack.symbolic.clustering` (6) and :mod:`~flowtrack.symbolic.five_languages` (7); every
 name is importable from ``flowtrack.symbolic`` itself.
 """
@@ -90,6 +91,11 @@ from .graph import (
     graph_normal_equations,
     graph_normal_equations_numeric,
 )
+from .motion import (
+    turn_rate_limits,
+    turn_rate_model,
+    turn_rate_model_numeric,
+)
 from .rgbd import (
     pixel_data_term,
     rgbd_energy_density,
@@ -141,5 +147,8 @@ __all__ = [
     "steady_state_variance_scalar",
     "steady_state_variance_scalar_numeric",
     "white_noise_acceleration_Q",
+    "turn_rate_limits",
+    "turn_rate_model",
+    "turn_rate_model_numeric",
     "white_noise_acceleration_Q_numeric",
 ]

@@ -39,10 +39,11 @@ from __future__ import annotations
 from .raycast import RayCast, look_at, ray_cast, ray_directions
 from .scenarios import SCENARIOS
 from .scene import Frame, Scene, make_scene
-from .shapes import Body, Box, Cylinder, PlanarTrajectory, Plane
+from .shapes import ArcTrajectory, Body, Box, Cylinder, PlanarTrajectory, Plane
 
 __all__ = [
     "SCENARIOS",
+    "ArcTrajectory",
     "Body",
     "Box",
     "Cylinder",

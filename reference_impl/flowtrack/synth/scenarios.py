@@ -16,7 +16,7 @@ import numpy as np
 from .._validation import as_array, nonnegative
 from ..camera import PinholeCamera
 from .raycast import look_at
-from .shapes import Body, Box, Cylinder, PlanarTrajectory
+from .shapes import ArcTrajectory, Body, Box, Cylinder, PlanarTrajectory
 
 __all__ = [
     "LIGHT_W",
@@ -24,6 +24,8 @@ __all__ = [
     "PALETTE",
     "SCENARIOS",
     "SCENARIO_MIN_OBJECTS",
+    "TURNING_ARC",
+    "TURNING_SHAPE",
     "X_RANGE",
     "Y_RANGE",
     "default_camera",
@@ -33,10 +35,11 @@ __all__ = [
     "scenario_script",
     "static_occluder",
     "straight_trajectory",
+    "turning_script",
 ]
 
 #: The scenarios :func:`flowtrack.synth.make_scene` knows (``scenario=`` option).
-SCENARIOS = ("default", "crossing", "occlusion", "mixed")
+SCENARIOS = ("default", "crossing", "occlusion", "mixed", "turning")
 
 #: Base colours of the moving objects (RGB in [0, 255]), drawn in a seeded random order.
 PALETTE = np.array(
@@ -167,7 +170,7 @@ def straight_trajectory(rng, p0, p1, duration, shape, opts) -> PlanarTrajectory:
 
 
 #: Fewest moving objects each scripted scenario needs (its scripted objects are ids 1..n).
-SCENARIO_MIN_OBJECTS = {"crossing": 2, "occlusion": 1, "mixed": 3}
+SCENARIO_MIN_OBJECTS = {"crossing": 2, "occlusion": 1, "mixed": 3, "turning": 1}
 _CROSSED_HALF_EXTENTS = (0.04, 0.04, 0.035)  # half extents of the low object that gets crossed
 _HIDING_HALF_EXTENTS = (0.03, 0.03, 0.035)  # half extents of the small object that hides behind an occluder
 
@@ -208,7 +211,20 @@ def scenario_script(scenario: str, kinds: Sequence[str]) -> tuple[dict, tuple | 
         paths = {1: (s1, (-0.2, y1), (0.16, y1)), 2: (s2, (0.2, 0.22), (-0.2, 0.22)),
                  3: (s3, (-0.05, y3), (0.3, y3))}
         return paths, ((0.05, 0.02, 0.07), (0.15, 0.31))
+    if scenario == "turning":
+        return turning_script(), None
     return {}, None
+
+
+#: the turning object: an upright cylinder (its visible-surface centroid turns with its centre)
+TURNING_SHAPE = (0.045, 0.045, 0.05)
+TURNING_ARC = {"center": (0.0, 0.2), "radius": 0.13, "omega": 1.0, "phase": -np.pi / 2}
+
+
+def turning_script() -> dict:
+    """Object 1 of the ``"turning"`` scenario: a cylinder going around an arc at 1 rad/s (0.13 m/s)."""
+    shape = _upright("cylinder", TURNING_SHAPE)
+    return {1: (shape, ArcTrajectory(**TURNING_ARC, z=shape.half_height))}
 
 
 def static_occluder(half_extents: tuple, xy: tuple, T_cw: np.ndarray, duration: float, tex: float):

@@ -245,7 +245,9 @@ def make_scene(
         in the middle; needs ``n_objects >= 1``) or ``"mixed"`` (both at once, the demo's scene:
         objects 1 and 2 cross as in ``"crossing"`` on shorter paths, object 3 slides behind a
         static box on the right and is hidden for a few frames just after the middle; needs
-        ``n_objects >= 3``). Remaining objects move randomly.
+        ``n_objects >= 3``) or ``"turning"`` (object 1, a cylinder, goes around a circular arc of
+        radius 0.13 m at 1 rad/s, turning with it: :class:`ArcTrajectory`; needs
+        ``n_objects >= 1``). Remaining objects move randomly.
         ``shapes`` : sequence of ``"box"``/``"cylinder"`` per object (default: alternate, random
         start). ``speed`` : ``(low, high)`` translation speed range in m/s (default (0.06, 0.15)).
         ``max_angular_speed`` : rad/s (default 0.8). ``bend`` : maximal lateral bulge of a path
@@ -337,9 +339,13 @@ def make_scene(
         static_discs = [disc]
     trajectories: dict[int, PlanarTrajectory] = {}
     placed = []
-    for k, (shape, p0, p1) in paths.items():
+    for k, (shape, *path) in paths.items():
         objects[k] = shape
-        trajectories[k] = straight_trajectory(rng, p0, p1, duration, shape, opts)
+        # a scripted path is (start, end) of a straight path, or a trajectory of its own (an arc)
+        if len(path) == 1:
+            trajectories[k] = path[0]
+        else:
+            trajectories[k] = straight_trajectory(rng, *path, duration, shape, opts)
         placed.append((trajectories[k], shape.radius))
     trajectories.update(random_trajectories(rng, objects, trajectories, duration, opts, placed, times,
                                              static_discs))

@@ -14,7 +14,7 @@ import numpy as np
 
 from .._validation import as_array, positive
 
-__all__ = ["Body", "Box", "Cylinder", "PlanarTrajectory", "Plane"]
+__all__ = ["ArcTrajectory", "Body", "Box", "Cylinder", "PlanarTrajectory", "Plane"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -261,3 +261,56 @@ class PlanarTrajectory:
         T[:3, :3] = _rot_z(self.theta0 + self.omega * t)
         T[:3, 3] = self.position(t)
         return T
+
+
+@dataclass(frozen=True)
+class ArcTrajectory:
+    r"""Rigid motion on a circle of the table: a constant rotation about a vertical axis.
+
+    The centre follows :math:`p(t) = c + \rho\,(\cos\phi(t), \sin\phi(t))` at height :math:`z`
+    with :math:`\phi(t) = \phi_0 + \omega t`, and the object turns with its path: heading
+    :math:`\phi(t) + \pi/2` (the tangent), so the whole body rotates at :math:`\omega` about the
+    vertical axis through :math:`c` (speed :math:`|\omega|\rho`, yaw rate :math:`\omega`). The
+    interface of :class:`PlanarTrajectory` (``position``, ``pose``).
+
+    Parameters
+    ----------
+    center : (float, float)
+        :math:`c`, world x-y (m).
+    radius : float
+        :math:`\rho` (m).
+    omega : float
+        Angular speed (rad/s), positive = counter-clockwise seen from above.
+    phase : float
+        :math:`\phi_0` (rad).
+    z : float
+        Height of the object's centre above the table.
+
+    Examples
+    --------
+    >>> tr = ArcTrajectory((0.0, 0.0), 1.0, omega=np.pi / 2, phase=0.0, z=0.1)
+    >>> np.round(tr.pose(1.0)[:3, 3], 12).tolist(), np.round(tr.pose(1.0)[:2, 0], 12).tolist()
+    ([0.0, 1.0, 0.1], [-1.0, 0.0])
+    """
+
+    center: tuple
+    radius: float
+    omega: float
+    phase: float
+    z: float
+
+    def position(self, t) -> np.ndarray:
+        """World position of the centre at time(s) ``t``: shape (3,) for a scalar, (len(t), 3) else."""
+        phi = self.phase + self.omega * np.asarray(t, dtype=float)
+        cx, cy = self.center
+        xy = np.stack([cx + self.radius * np.cos(phi), cy + self.radius * np.sin(phi)], axis=-1)
+        return np.concatenate([xy, np.full((*xy.shape[:-1], 1), float(self.z))], axis=-1)
+
+    def pose(self, t: float) -> np.ndarray:
+        """Object-to-world transform :math:`T_{wo}(t)`, shape (4, 4)."""
+        T = np.eye(4)
+        T[:3, :3] = _rot_z(self.phase + self.omega * t + np.pi / 2)
+        T[:3, 3] = self.position(t)
+        return T
+
+
