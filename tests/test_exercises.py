@@ -42,6 +42,7 @@ EXPECTED_FILES = [
     "ex08_hungarian.ipynb",
     "ex09_track_management.ipynb",
     "ex10_motion_clustering.ipynb",
+    "ex12_rgbd_data_term.ipynb",
 ]
 
 
@@ -210,6 +211,18 @@ vels = np.array([V[lab == k].mean(axis=0) for k in range(K)])
 return cents, vels
 """
     },
+    "ex12_rgbd_data_term": {  # depth constancy D(x + u) = D(x): the range-flow -e_z is missing
+        "data_term_rows": """
+X = np.asarray(X, dtype=float)
+iz = 1.0 / X[:, 2]
+J = np.zeros((X.shape[0], 2, 3))
+J[:, 0, 0] = fx * iz
+J[:, 0, 2] = -fx * X[:, 0] * iz**2
+J[:, 1, 1] = fy * iz
+J[:, 1, 2] = -fy * X[:, 1] * iz**2
+return np.einsum("nij,ni->nj", J, grad_i), np.einsum("nij,ni->nj", J, grad_d)
+"""
+    },
 }
 
 # An answer that calls the blocked reference: {grade_id: whole cell source}.
@@ -329,6 +342,23 @@ CHEAT = {
             "    t = tracks_from_clusters(points, flow, lab)\n"
             "    return np.array([c for c, _ in t]), np.array([v for _, v in t])\n"
         )
+    },
+    "ex12_rgbd_data_term": {
+        "data_term_rows": (
+            "def data_term_rows(X, grad_i, grad_d, fx, fy):\n"
+            "    import numpy as np\n"
+            "    from flowtrack.camera import PinholeCamera, projection_jacobian\n"
+            "    J = projection_jacobian(X, PinholeCamera(fx, fy, 0.0, 0.0))\n"
+            "    a_d = np.einsum('nij,ni->nj', J, grad_d)\n"
+            "    a_d[:, 2] -= 1.0\n"
+            "    return np.einsum('nij,ni->nj', J, grad_i), a_d\n"
+        ),
+        "pixel_normal_equations": (
+            "def pixel_normal_equations(X, grad_i, r_i, grad_d, r_d, fx, fy, w_i, w_d):\n"
+            "    from flowtrack.camera import PinholeCamera\n"
+            "    from flowtrack.rgbd_flow import pixel_normal_equations as ref\n"
+            "    return ref(X, grad_i, r_i, grad_d, r_d, PinholeCamera(fx, fy, 0.0, 0.0), w_i, w_d)\n"
+        ),
     },
 }
 
