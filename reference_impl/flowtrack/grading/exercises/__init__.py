@@ -22,7 +22,8 @@ in the calling process and is therefore **not secure**: flowtrack's grader runs 
 
 The package: :mod:`~flowtrack.grading.exercises.checks` (shared scoring helpers), one module per
 exercise (``ex01_projection_jacobian`` ... ``ex12_rgbd_data_term``),
-:mod:`~flowtrack.grading.exercises.registry` (``EXERCISES``, ``get_exercise``) and :mod:`~flowtrack.grading.exercises.inprocess` (``run_in_process``).
+:mod:`~flowtrack.grading.exercises.registry` (``EXERCISES``, ``get_exercise``) and
+:mod:`~flowtrack.grading.exercises.inprocess` (``run_in_process``).
 
 Examples
 --------
