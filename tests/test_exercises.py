@@ -723,6 +723,32 @@ def test_ex09_tracker_follows_the_stated_rule():
         ), trial
 
 
+def test_ex12_expected_values_match_the_sympy_data_term():
+    """The rows and normal equations ex12 grades against equal sympy's derivation from the projection."""
+    import sympy as sp
+
+    from flowtrack.grading.exercises import ex12_rgbd_data_term as ex12
+    from flowtrack.symbolic.rgbd import pixel_data_term
+
+    d = pixel_data_term()
+    X, Y, Z, fx, fy, Ix, Iy, Dx, Dy, cI, cD = d["symbols"]
+    rI, rD = sp.symbols("r_I r_D", real=True)
+    b_sym = -(cI * rI * d["a_I"] + cD * rD * d["a_D"])
+    rng = np.random.default_rng(12)
+    Xs, gi, ri, gd, rd, f_x, f_y = ex12._random_pixels(rng, 4)
+    wi, wd = rng.uniform(0.0, 3000.0, 4), rng.uniform(0.0, 1e5, 4)
+    a_i, a_d = ex12._rows(Xs, gi, gd, f_x, f_y)
+    N, b = ex12._reference(Xs, gi, ri, gd, rd, f_x, f_y, wi, wd)
+    for k in range(4):
+        sub = {X: Xs[k, 0], Y: Xs[k, 1], Z: Xs[k, 2], fx: f_x, fy: f_y, Ix: gi[k, 0], Iy: gi[k, 1],
+               Dx: gd[k, 0], Dy: gd[k, 1], cI: wi[k], cD: wd[k], rI: ri[k], rD: rd[k]}
+        np.testing.assert_allclose(a_i[k], np.array(d["a_I"].subs(sub), dtype=float).ravel(), rtol=1e-10)
+        np.testing.assert_allclose(a_d[k], np.array(d["a_D"].subs(sub), dtype=float).ravel(), rtol=1e-10)
+        np.testing.assert_allclose(N[k], np.array(d["N"].subs(sub), dtype=float), rtol=1e-10, atol=1e-9)
+        b_k = np.array(b_sym.subs(sub), dtype=float).ravel()
+        np.testing.assert_allclose(b[k], b_k, rtol=1e-10, atol=1e-9)
+
+
 def test_ex08_expected_optimum_matches_brute_force():
     """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
     from flowtrack.grading.exercises.ex08_hungarian import assignment_check
