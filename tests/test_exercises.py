@@ -42,6 +42,7 @@ EXPECTED_FILES = [
     "ex08_hungarian.ipynb",
     "ex09_track_management.ipynb",
     "ex10_motion_clustering.ipynb",
+    "ex12_rgbd_data_term.ipynb",
 ]
 
 
@@ -210,6 +211,18 @@ vels = np.array([V[lab == k].mean(axis=0) for k in range(K)])
 return cents, vels
 """
     },
+    "ex12_rgbd_data_term": {  # depth constancy D(x + u) = D(x): the range-flow -e_z is missing
+        "data_term_rows": """
+X = np.asarray(X, dtype=float)
+iz = 1.0 / X[:, 2]
+J = np.zeros((X.shape[0], 2, 3))
+J[:, 0, 0] = fx * iz
+J[:, 0, 2] = -fx * X[:, 0] * iz**2
+J[:, 1, 1] = fy * iz
+J[:, 1, 2] = -fy * X[:, 1] * iz**2
+return np.einsum("nij,ni->nj", J, grad_i), np.einsum("nij,ni->nj", J, grad_d)
+"""
+    },
 }
 
 # An answer that calls the blocked reference: {grade_id: whole cell source}.
@@ -329,6 +342,23 @@ CHEAT = {
             "    t = tracks_from_clusters(points, flow, lab)\n"
             "    return np.array([c for c, _ in t]), np.array([v for _, v in t])\n"
         )
+    },
+    "ex12_rgbd_data_term": {
+        "data_term_rows": (
+            "def data_term_rows(X, grad_i, grad_d, fx, fy):\n"
+            "    import numpy as np\n"
+            "    from flowtrack.camera import PinholeCamera, projection_jacobian\n"
+            "    J = projection_jacobian(X, PinholeCamera(fx, fy, 0.0, 0.0))\n"
+            "    a_d = np.einsum('nij,ni->nj', J, grad_d)\n"
+            "    a_d[:, 2] -= 1.0\n"
+            "    return np.einsum('nij,ni->nj', J, grad_i), a_d\n"
+        ),
+        "pixel_normal_equations": (
+            "def pixel_normal_equations(X, grad_i, r_i, grad_d, r_d, fx, fy, w_i, w_d):\n"
+            "    from flowtrack.camera import PinholeCamera\n"
+            "    from flowtrack.rgbd_flow import pixel_normal_equations as ref\n"
+            "    return ref(X, grad_i, r_i, grad_d, r_d, PinholeCamera(fx, fy, 0.0, 0.0), w_i, w_d)\n"
+        ),
     },
 }
 
@@ -691,6 +721,32 @@ def test_ex09_tracker_follows_the_stated_rule():
         assert expected_frames(frames, min_hits, max_misses) == _bookkeeping_oracle(
             frames, min_hits, max_misses
         ), trial
+
+
+def test_ex12_expected_values_match_the_sympy_data_term():
+    """The rows and normal equations ex12 grades against equal sympy's derivation from the projection."""
+    import sympy as sp
+
+    from flowtrack.grading.exercises import ex12_rgbd_data_term as ex12
+    from flowtrack.symbolic.rgbd import pixel_data_term
+
+    d = pixel_data_term()
+    X, Y, Z, fx, fy, Ix, Iy, Dx, Dy, cI, cD = d["symbols"]
+    rI, rD = sp.symbols("r_I r_D", real=True)
+    b_sym = -(cI * rI * d["a_I"] + cD * rD * d["a_D"])
+    rng = np.random.default_rng(12)
+    Xs, gi, ri, gd, rd, f_x, f_y = ex12._random_pixels(rng, 4)
+    wi, wd = rng.uniform(0.0, 3000.0, 4), rng.uniform(0.0, 1e5, 4)
+    a_i, a_d = ex12._rows(Xs, gi, gd, f_x, f_y)
+    N, b = ex12._reference(Xs, gi, ri, gd, rd, f_x, f_y, wi, wd)
+    for k in range(4):
+        sub = {X: Xs[k, 0], Y: Xs[k, 1], Z: Xs[k, 2], fx: f_x, fy: f_y, Ix: gi[k, 0], Iy: gi[k, 1],
+               Dx: gd[k, 0], Dy: gd[k, 1], cI: wi[k], cD: wd[k], rI: ri[k], rD: rd[k]}
+        np.testing.assert_allclose(a_i[k], np.array(d["a_I"].subs(sub), dtype=float).ravel(), rtol=1e-10)
+        np.testing.assert_allclose(a_d[k], np.array(d["a_D"].subs(sub), dtype=float).ravel(), rtol=1e-10)
+        np.testing.assert_allclose(N[k], np.array(d["N"].subs(sub), dtype=float), rtol=1e-10, atol=1e-9)
+        b_k = np.array(b_sym.subs(sub), dtype=float).ravel()
+        np.testing.assert_allclose(b[k], b_k, rtol=1e-10, atol=1e-9)
 
 
 def test_ex08_expected_optimum_matches_brute_force():

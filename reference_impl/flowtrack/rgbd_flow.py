@@ -119,7 +119,7 @@ import numpy as np
 from scipy import ndimage
 
 from ._validation import nonnegative, positive, positive_int
-from .camera import PinholeCamera, _check_cam
+from .camera import PinholeCamera, check_camera
 
 __all__ = [
     "BACKENDS",
@@ -230,7 +230,7 @@ def pixel_normal_equations(X, grad_i, r_i, grad_d, r_d, cam: PinholeCamera, w_i=
     >>> b + 0.0
     array([-50.,   0.,   0.])
     """
-    cam = _check_cam(cam)
+    cam = check_camera(cam)
     X = np.asarray(X, dtype=np.float64)
     if X.ndim < 1 or X.shape[-1] != 3:
         raise ValueError(f"X must have shape (..., 3), got {X.shape}")
@@ -706,7 +706,7 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     shape = I0.shape[:2]
     D0 = _check_depth(depth_t, "depth_t", shape)
     D1 = _check_depth(depth_t1, "depth_t1", shape)
-    cam = _check_cam(cam)
+    cam = check_camera(cam)
     if cam.width is not None and cam.height is not None and (cam.height, cam.width) != shape:
         raise ValueError(f"cam is for {cam.height}×{cam.width} images, the images are {shape[0]}×{shape[1]}")
     dt = positive(dt, "dt")

@@ -1,4 +1,4 @@
-r"""The exercise registry: trusted test definitions of the ten exercise notebooks in ``exercises/``.
+r"""The exercise registry: trusted test definitions of the exercise notebooks in ``exercises/``.
 
 Every :class:`~flowtrack.grading.spec.Exercise` here names its notebook, the nbgrader ``grade_id``\ s of
 the answer cells a student fills in, the modules the student's code may not import, and its
@@ -21,8 +21,9 @@ in the calling process and is therefore **not secure**: flowtrack's grader runs 
 :mod:`flowtrack.grading.sandbox`.
 
 The package: :mod:`~flowtrack.grading.exercises.checks` (shared scoring helpers), one module per
-exercise (``ex01_projection_jacobian`` ... ``ex10_motion_clustering``), :mod:`~flowtrack.grading.exercises.registry`
-(``EXERCISES``, ``get_exercise``) and :mod:`~flowtrack.grading.exercises.inprocess` (``run_in_process``).
+exercise (``ex01_projection_jacobian`` ... ``ex12_rgbd_data_term``),
+:mod:`~flowtrack.grading.exercises.registry` (``EXERCISES``, ``get_exercise``) and
+:mod:`~flowtrack.grading.exercises.inprocess` (``run_in_process``).
 
 Examples
 --------
