@@ -90,7 +90,7 @@ EXERCISE = Exercise(
     title="Kalman predict and update",
     notebook="ex06_kalman_predict_update.ipynb",
     answer_cells=("kf_predict", "kf_update"),
-    blocked=("flowtrack.kalman", "flowtrack.batch_kalman", "flowtrack.tracking", "flowtrack.particle", "flowtrack.bayes"),
+    blocked=("flowtrack.kalman", "flowtrack.tracking", "flowtrack.particle", "flowtrack.bayes"),
     allowed=('numpy', 'scipy.linalg'),
     tests=(_ex06_predict_public, _ex06_predict_hidden, _ex06_update_public, _ex06_update_hidden),
 )
