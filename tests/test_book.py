@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 
 from browser import check_pages
-from flowtrack.book import build_book, rewrite_links
-from flowtrack.notebooks import is_jupytext_notebook
+from flowtrack_course.book import build_book, rewrite_links
+from flowtrack_course.notebooks import is_jupytext_notebook
 
 ROOT = Path(__file__).resolve().parents[1]
 # myst-nb and sphinx-book-theme still use attributes that Sphinx 9 deprecates for Sphinx 11
@@ -194,7 +194,7 @@ def test_build_book_rejects_bad_arguments(tmp_path):
 
 
 def test_build_book_stops_at_a_failing_notebook(tmp_path):
-    from flowtrack.notebooks import NotebookExecutionError
+    from flowtrack_course.notebooks import NotebookExecutionError
 
     (tmp_path / "lessons").mkdir()
     (tmp_path / "solutions").mkdir()

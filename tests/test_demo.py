@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from flowtrack.cli import main
-from flowtrack.demo import DemoConfig, detect_objects
 from flowtrack.synth import make_scene
+from flowtrack_course.cli import main
+from flowtrack_course.demo import DemoConfig, detect_objects
 
 FRAMES, AHEAD = 12, 3
 PROMISED = ("flow_field.png", "clusters_3d.png", "trajectories.png", "tracks.gif", "motorcycle_flow.png",
@@ -155,7 +155,7 @@ def test_full_report_opens_offline_in_headless_chromium(demo_out, tmp_path):
 
 
 def test_cluster_colours_follow_the_largest_overlap():
-    from flowtrack.demo import _cluster_colours
+    from flowtrack_course.demo import _cluster_colours
 
     truth = np.array([0, 1, 1, 1, 2, 2, 0, 3, 3])
     clusters = np.array([-1, 5, 5, 0, 0, 0, 2, 2, -1])  # 5 ~ object 1, 0 ~ object 2, 2 ~ object 3
@@ -310,7 +310,7 @@ def test_reproduce_command_round_trips_through_the_cli(change, monkeypatch, tmp_
     import inspect
     import shlex
 
-    import flowtrack.demo as demo
+    import flowtrack_course.demo as demo
     from flowtrack.rgbd_io import load_stereo_sequence, load_tum_sequence
 
     kwargs = _SYNTH | {"out": str(tmp_path / "o u t")} | change
@@ -350,7 +350,7 @@ def test_reproduce_command_without_cli_options_is_a_python_call(change, monkeypa
     import inspect
     import shlex
 
-    import flowtrack.demo as demo
+    import flowtrack_course.demo as demo
 
     kwargs = _SYNTH | {"out": "out"} | change
     argv = shlex.split(demo._reproduce_command(**kwargs))
@@ -415,7 +415,7 @@ def test_two_runs_with_the_same_seed_are_identical(demo_out, summary, tmp_path):
     """Bit for bit: tracks, predictions and every metric (open3d runs on one thread, see run_demo)."""
     import open3d as o3d
 
-    from flowtrack.demo import run_demo
+    from flowtrack_course.demo import run_demo
 
     before = o3d.utility.get_max_threads()
     during = []
@@ -431,7 +431,7 @@ def test_two_runs_with_the_same_seed_are_identical(demo_out, summary, tmp_path):
 def test_support_planes_is_repeatable():
     """open3d's RANSAC, seeded but multi-threaded, picked different planes from run to run."""
     from flowtrack.camera import backproject
-    from flowtrack.demo import support_planes
+    from flowtrack_course.demo import support_planes
 
     scene = make_scene(n_objects=3, n_frames=6, image_size=(120, 160), seed=0)
     for f in scene.frames:
@@ -445,7 +445,7 @@ def test_open3d_threads_without_set_max_threads_limits_openmp(monkeypatch):
     import open3d as o3d
     from threadpoolctl import threadpool_info
 
-    from flowtrack.demo import _open3d_threads
+    from flowtrack_course.demo import _open3d_threads
 
     def openmp_threads():
         return {p["num_threads"] for p in threadpool_info() if p["user_api"] == "openmp"}

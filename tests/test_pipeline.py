@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from flowtrack.clustering import drop_small_clusters
-from flowtrack.demo import DemoConfig, cluster_purity, estimate_clouds
 from flowtrack.sceneflow import (
     graph_scene_flow,
     iterative_graph_scene_flow,
@@ -12,6 +11,7 @@ from flowtrack.sceneflow import (
     scene_flow_metrics,
 )
 from flowtrack.synth import make_scene
+from flowtrack_course.demo import DemoConfig, cluster_purity, estimate_clouds
 
 
 @pytest.fixture(scope="module")

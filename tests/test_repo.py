@@ -112,7 +112,7 @@ def test_jupytext_sources_round_trip_to_notebooks_without_outputs(tmp_path):
 
 
 def test_cli_help_on_every_subcommand():
-    from flowtrack.cli import build_parser
+    from flowtrack_course.cli import build_parser
 
     parser = build_parser()
     sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")

@@ -11,7 +11,9 @@ The reference implementation of the flowtrack course. Modules:
 - :mod:`flowtrack.synth` – synthetic RGB-D scenes with exact ground truth.
 - :mod:`flowtrack.realdata` – real data shipped inside installed packages (Middlebury Motorcycle).
 
-Submodules are imported lazily so that ``import flowtrack`` stays cheap.
+Submodules are imported lazily so that ``import flowtrack`` stays cheap. The course's tooling
+(grading, port harnesses, book, widgets, demo app, ``flowtrack`` command) lives in the sibling
+package :mod:`flowtrack_course`, which builds on this one; this package never imports it.
 """
 
 from __future__ import annotations
@@ -34,7 +36,6 @@ _SUBMODULES = {
     "synth",
     "realdata",
     "symbolic",
-    "widgets",
 }
 
 __all__ = [*sorted(_SUBMODULES), "__version__"]

@@ -11,14 +11,14 @@ import importlib
 import sys
 from pathlib import Path
 
-from . import __version__
+from flowtrack import __version__
 
 # Modules that add their own sub-commands: each has ``register(subparsers)`` which adds one or more
 # parsers and sets ``func`` (called with the parsed namespace, returns the exit code). Keep their
 # top-level imports light: ``flowtrack --help`` imports all of them.
 _SUBCOMMAND_MODULES: tuple[str, ...] = (
-    "flowtrack.ports.runner",
-    "flowtrack.grading.cli",
+    "flowtrack_course.ports.runner",
+    "flowtrack_course.grading.cli",
 )
 
 
@@ -44,7 +44,7 @@ def _positive_float(text: str) -> float:
 
 #: ``run_demo``'s ``input_options`` that ``flowtrack demo`` has an option for: key -> (option, its
 #: argparse keywords). The one definition of these options: the parser is built from it and
-#: :mod:`flowtrack.demo` writes a run's command line back from it (the "Reproduce" box).
+#: :mod:`flowtrack_course.demo` writes a run's command line back from it (the "Reproduce" box).
 DEMO_INPUT_OPTIONS: dict[str, tuple[str, dict]] = {
     "intrinsics": ("--intrinsics", dict(
         default=None, metavar="FX,FY,CX,CY",

@@ -2,7 +2,7 @@ r"""Test-vector problems for the Java/OpenCV and Mathematica ports: Lucas–Kana
 
 Both functions return JSON-plain dicts ``{"problem", "cases": [{"id", "input", "expected", "rtol",
 "atol"}]}`` (floats, ints and lists only) and are deterministic; the vector registry of
-:mod:`flowtrack.ports.vectors` writes them to ``cpp_java_matlab_ports/vectors/<problem>.json``.
+:mod:`flowtrack_course.ports.vectors` writes them to ``cpp_java_matlab_ports/vectors/<problem>.json``.
 
 ``lucas_kanade``
     An image pair rendered by :func:`flowtrack.synth.make_scene`, feature points on the moving
@@ -105,8 +105,8 @@ def select_lk_features(
 
 
 def _lk_case(seed: int, image_size=(240, 320), dt: float = 0.1, margin: int = 16) -> dict:
-    from ..camera import project
-    from ..synth import make_scene
+    from flowtrack.camera import project
+    from flowtrack.synth import make_scene
 
     scene = make_scene(n_objects=3, n_frames=2, image_size=image_size, dt=dt, noise=0.0, seed=seed)
     f0, f1 = scene.frames

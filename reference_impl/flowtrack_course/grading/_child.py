@@ -1,6 +1,6 @@
 """The runner executed inside the sandbox (``python -I -S _child.py REPLY_FD``).
 
-It is started by :class:`flowtrack.grading.sandbox.Sandbox` and never imported by the grader. It
+It is started by :class:`flowtrack_course.grading.sandbox.Sandbox` and never imported by the grader. It
 imports only the standard library and numpy. Protocol: length-prefixed (4-byte big-endian) UTF-8
 JSON messages; requests on stdin, replies on the file descriptor given as the first argument.
 

@@ -2,7 +2,7 @@
 
 The grading process never imports or executes student code. For each student and exercise it
 extracts the answer cells of the student's notebook by their nbgrader ``grade_id``, starts a
-:class:`~flowtrack.grading.sandbox.Sandbox` with them, and for each :class:`GradedTest` builds the
+:class:`~flowtrack_course.grading.sandbox.Sandbox` with them, and for each :class:`GradedTest` builds the
 calls from a seeded generator, runs them in the child, and scores the plain-data outcomes with the
 test's trusted scorer. A test earns ``points x fraction`` with ``fraction`` from the scorer alone, so
 the score of a test is
@@ -47,7 +47,8 @@ from typing import Any
 
 import numpy as np
 
-from .._validation import positive_int
+from flowtrack._validation import positive_int
+
 from .spec import Exercise, GradedTest, Outcome, secret_id, student_seed
 
 __all__ = [
@@ -189,9 +190,10 @@ def run_exercise(
     limits : Limits or None
         Resource limits for the sandbox (its defaults when ``None``).
     sandbox_factory : callable or None
-        ``Sandbox``-like class (tests inject fakes); default :class:`flowtrack.grading.sandbox.Sandbox`.
+        ``Sandbox``-like class (tests inject fakes); default
+        :class:`flowtrack_course.grading.sandbox.Sandbox`.
     secret : bytes or None
-        The instructor's seed key for the hidden tests (:func:`~flowtrack.grading.spec.read_secret`).
+        The instructor's seed key for the hidden tests (:func:`~flowtrack_course.grading.spec.read_secret`).
 
     Returns
     -------
@@ -585,7 +587,7 @@ def grade_class(
 ) -> list[dict]:
     """Grade every student folder of ``submissions`` into ``out`` (see the module docstring).
 
-    ``secret`` (the instructor's key, :func:`~flowtrack.grading.spec.read_secret`) seeds the hidden
+    ``secret`` (the instructor's key, :func:`~flowtrack_course.grading.spec.read_secret`) seeds the hidden
     tests; use the same one for every run of a class.
 
     ``jobs`` worker processes grade students in parallel (each runs its own sandboxes); ``jobs=1``

@@ -6,7 +6,7 @@ equation solved with ``Solve``, positive root), ``ProjectionJacobian.wl`` (``D``
 
 Mathics3 has no JSON reader worth relying on, so this module turns each vector case into a Wolfram
 Language expression (inputs written as machine reals with ``repr`` precision, ``*^`` exponents),
-runs all of them in *one* fresh Mathics3 process (``python -m flowtrack.ports.lang_mathics JOB``,
+runs all of them in *one* fresh Mathics3 process (``python -m flowtrack_course.ports.lang_mathics JOB``,
 about 3 s start-up), reads each result printed in ``InputForm`` (16 significant digits for machine
 reals; the steady state is printed with 30 digits) and compares it with the case's tolerance here,
 in Python: pass iff every ``|got - exp| <= atol + rtol |exp|``.

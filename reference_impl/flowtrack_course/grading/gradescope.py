@@ -9,7 +9,7 @@ The zip holds::
     flowtrack/        the package's source tree (pyproject.toml, README.md, reference_impl/flowtrack),
                       which carries the exercises' trusted test definitions
 
-``run_autograder`` calls ``python -m flowtrack.grading.gradescope run`` (:func:`run_submission`); its
+``run_autograder`` calls ``python -m flowtrack_course.grading.gradescope run`` (:func:`run_submission`); its
 paths come from the environment so that it can be tried outside Gradescope: ``AUTOGRADER_ROOT``
 (default ``/autograder``) and ``FLOWTRACK_PYTHON`` (default ``$AUTOGRADER_ROOT/venv/bin/python``).
 The hidden tests' inputs are seeded by the submitter's Gradescope id from
@@ -64,7 +64,7 @@ if [ -f "$ROOT/source/secret" ]; then  # the instructor's seed key (flowtrack gr
     chmod 600 "$ROOT/source/secret"
     SECRET=(--secret-file "$ROOT/source/secret")
 fi
-exec "$PY" -m flowtrack.grading.gradescope run \\
+exec "$PY" -m flowtrack_course.grading.gradescope run \\
     --submission "$ROOT/submission" \\
     --metadata "$ROOT/submission_metadata.json" \\
     --results "$ROOT/results/results.json" \\
@@ -96,7 +96,7 @@ def build_autograder(
 
     Only the package (``reference_impl/flowtrack``), ``pyproject.toml`` and ``README.md`` are copied:
     no exercises, solutions, lessons or caches. With ``secret_file`` (created if missing, see
-    :func:`~flowtrack.grading.spec.read_secret`) the key is added as ``secret`` (mode 0600: the
+    :func:`~flowtrack_course.grading.spec.read_secret`) the key is added as ``secret`` (mode 0600: the
     sandbox's unprivileged uid cannot read it, and it is not bound into the sandbox) and seeds the
     hidden tests.
     """
@@ -185,8 +185,9 @@ def run_submission(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m flowtrack.grading.gradescope run --submission DIR --results FILE [--metadata F]``."""
-    parser = argparse.ArgumentParser(prog="python -m flowtrack.grading.gradescope")
+    """``python -m flowtrack_course.grading.gradescope run --submission DIR --results FILE
+    [--metadata F]``."""
+    parser = argparse.ArgumentParser(prog="python -m flowtrack_course.grading.gradescope")
     sub = parser.add_subparsers(dest="cmd", required=True)
     run = sub.add_parser("run", help="grade one Gradescope submission (what run_autograder calls)")
     run.add_argument("--submission", required=True, help="the submission folder")

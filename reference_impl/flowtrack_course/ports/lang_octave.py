@@ -2,7 +2,7 @@
 
 Sources: ``cpp_java_matlab_ports/octave/`` (``kalman_cv2d.m``, ``white_noise_q.m``,
 ``projection_jacobian.m``, ``variational_component.m`` and the test script ``run_vectors.m``, which
-reads the vectors with ``jsondecode`` and prints ``CASE`` lines, see :mod:`flowtrack.ports.base`).
+reads the vectors with ``jsondecode`` and prints ``CASE`` lines, see :mod:`flowtrack_course.ports.base`).
 Nothing is compiled; ``build_dir`` is not used.
 """
 

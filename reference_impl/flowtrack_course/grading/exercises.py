@@ -1,14 +1,14 @@
 r"""The exercise registry: trusted test definitions of the ten exercise notebooks in ``exercises/``.
 
-Every :class:`~flowtrack.grading.spec.Exercise` here names its notebook, the nbgrader ``grade_id``\ s of
-the answer cells a student fills in, the modules the student's code may not import, and its
-:class:`~flowtrack.grading.spec.GradedTest`\ s. A test's ``build(rng)`` returns the
-:class:`~flowtrack.grading.spec.Call`\ s to make and a scorer; expected values are computed in
+Every :class:`~flowtrack_course.grading.spec.Exercise` here names its notebook, the nbgrader
+``grade_id``\ s of the answer cells a student fills in, the modules the student's code may not import, and its
+:class:`~flowtrack_course.grading.spec.GradedTest`\ s. A test's ``build(rng)`` returns the
+:class:`~flowtrack_course.grading.spec.Call`\ s to make and a scorer; expected values are computed in
 ``build`` by the trusted reference (``flowtrack`` itself, or scipy for the Hungarian algorithm) on the
 grader's side and never sent to the student's code. Public tests use small fixed inputs (the ones the
 notebook's visible asserts show) and get ``rng`` seeded with the fixed
-:func:`~flowtrack.grading.grade.public_seed`; hidden tests draw other inputs from ``rng``, which the
-grader seeds per student with :func:`~flowtrack.grading.spec.student_seed`. Every scorer gives partial
+:func:`~flowtrack_course.grading.grade.public_seed`; hidden tests draw other inputs from ``rng``, which the
+grader seeds per student with :func:`~flowtrack_course.grading.spec.student_seed`. Every scorer gives partial
 credit: the fraction of calls (or checks) that pass.
 
 ``run_in_process`` runs the same tests on functions found in a namespace dict (the notebook's
@@ -18,7 +18,7 @@ sees the same public inputs in every path), and applies the same scorers with th
 NaN or infinite fraction earns 0). It is what the notebooks' own hidden-test blocks call, so that
 ``nbgrader autograde`` also grades these notebooks (with partial credit). It executes student code
 in the calling process and is therefore **not secure**: flowtrack's grader runs student code only in
-:mod:`flowtrack.grading.sandbox`.
+:mod:`flowtrack_course.grading.sandbox`.
 
 Examples
 --------
@@ -1176,8 +1176,8 @@ def run_in_process(
     namespace : mapping
         Where the student's functions live (a notebook's ``globals()``).
     student : str
-        Seeds the hidden tests' inputs (:func:`~flowtrack.grading.spec.student_seed`, without a
-        secret). Public tests always use :func:`~flowtrack.grading.grade.public_seed`, the seed
+        Seeds the hidden tests' inputs (:func:`~flowtrack_course.grading.spec.student_seed`, without a
+        secret). Public tests always use :func:`~flowtrack_course.grading.grade.public_seed`, the seed
         ``flowtrack grade`` and ``flowtrack check`` give them.
     cell : str, optional
         Only the tests of this notebook test cell (``grade_id``).

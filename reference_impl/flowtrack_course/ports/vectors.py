@@ -50,7 +50,7 @@ Problems (inputs -> expected; the conventions the ports must follow):
     than ``threshold`` ignored); the case tolerance is for ``T``. ``T_true`` is the motion that made
     ``target`` (before 1 mm noise), for information; the vector tests check ``T`` against it.
 ``lucas_kanade``, ``steady_state_scalar``
-    From :mod:`flowtrack.ports.vectors_extra` (documented there).
+    From :mod:`flowtrack_course.ports.vectors_extra` (documented there).
 """
 
 from __future__ import annotations

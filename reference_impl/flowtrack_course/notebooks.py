@@ -7,7 +7,7 @@ same ``flowtrack`` as the caller. A failing cell raises :class:`NotebookExecutio
 notebook, the cell number, the cell's source and the kernel's traceback.
 
 jupytext, nbformat, nbclient and ipykernel are needed only here (the ``lessons`` extra); they are
-imported lazily so that ``import flowtrack.notebooks`` never fails.
+imported lazily so that ``import flowtrack_course.notebooks`` never fails.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from ._validation import positive
+from flowtrack._validation import positive
 
 __all__ = [
     "NotebookExecutionError",

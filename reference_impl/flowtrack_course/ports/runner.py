@@ -20,11 +20,11 @@ __all__ = ["LANG_MODULES", "format_table", "register", "run_ports"]
 
 #: ``--lang`` value -> module implementing that language family's ports.
 LANG_MODULES: dict[str, str] = {
-    "cpp": "flowtrack.ports.lang_cpp",
-    "java": "flowtrack.ports.lang_java",
-    "octave": "flowtrack.ports.lang_octave",
-    "mathics": "flowtrack.ports.lang_mathics",
-    "blocks": "flowtrack.ports.lang_blocks",
+    "cpp": "flowtrack_course.ports.lang_cpp",
+    "java": "flowtrack_course.ports.lang_java",
+    "octave": "flowtrack_course.ports.lang_octave",
+    "mathics": "flowtrack_course.ports.lang_mathics",
+    "blocks": "flowtrack_course.ports.lang_blocks",
 }
 
 DEFAULT_BUILD_DIR = PORTS_DIR / "build"

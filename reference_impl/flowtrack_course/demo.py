@@ -41,18 +41,19 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from ._graph import as_labels
-from ._validation import as_array, positive, positive_int
-from .camera import backproject, optical_flow_from_scene_flow, project, projection_jacobian
-from .clustering import cluster_motion, drop_small_clusters
-from .report import Figure, Section, Table, render_markdown, write_report
-from .sceneflow import (
+from flowtrack._graph import as_labels
+from flowtrack._validation import as_array, positive, positive_int
+from flowtrack.camera import backproject, optical_flow_from_scene_flow, project, projection_jacobian
+from flowtrack.clustering import cluster_motion, drop_small_clusters
+from flowtrack.sceneflow import (
     iterative_graph_scene_flow,
     nearest_neighbor_targets,
     rigid_flow_per_cluster,
     scene_flow_metrics,
 )
-from .synth import make_scene
+from flowtrack.synth import make_scene
+
+from .report import Figure, Section, Table, render_markdown, write_report
 
 __all__ = [
     "DemoConfig", "FlowPair", "METHODS", "detect_objects", "estimate_clouds", "run_demo", "support_planes",
@@ -165,7 +166,7 @@ def motorcycle_section(cfg: DemoConfig, seed: int = 0, figure: Path | str | None
     """
     from sklearn.metrics import adjusted_rand_score
 
-    from .realdata import motorcycle_flow_case
+    from flowtrack.realdata import motorcycle_flow_case
 
     case = motorcycle_flow_case(seed=seed)
     # a sparser cloud (about 1 cm between points) moving faster (about 4 cm per frame)
@@ -563,7 +564,7 @@ def _plot_clusters(inp: _Input, pair: FlowPair, path: Path) -> None:
 
 
 def _plot_motorcycle(case: dict, estimate: np.ndarray, path: Path) -> None:
-    from .realdata import motorcycle_camera, motorcycle_depth
+    from flowtrack.realdata import motorcycle_camera, motorcycle_depth
 
     plt = _plt()
     cam = motorcycle_camera()
@@ -715,7 +716,7 @@ def _plot_tud_campus(centres, hyp, max_dist: float, path: Path) -> None:
     import matplotlib
     from matplotlib.lines import Line2D
 
-    from .metrics import clear_mot
+    from flowtrack.metrics import clear_mot
 
     _, matches, switches = clear_mot(centres, hyp, max_dist, return_matches=True)
     T = len(centres)
@@ -812,7 +813,7 @@ def _load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict
             raise ValueError(f"n_objects={n_objects} does not fit on the table: {exc}") from exc
         return _Input(f"synthetic scene ({scenario})", scene.camera, scene.dt, [f.rgb for f in scene.frames],
                       [f.depth for f in scene.frames], n_frames, scene)
-    from .rgbd_io import load_rgbd
+    from flowtrack.rgbd_io import load_rgbd
 
     opts = dict(input_options or {})
     stereo = bool(opts.pop("stereo", False))
@@ -825,7 +826,7 @@ def _load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict
 
 def _intrinsics_text(spec) -> str:
     """``--intrinsics`` for an ``intrinsics`` value: a string or path as is, else ``fx,fy,cx,cy``."""
-    from .camera import PinholeCamera
+    from flowtrack.camera import PinholeCamera
 
     if isinstance(spec, (str, Path)):
         return str(spec)
@@ -883,7 +884,7 @@ def _reproduce_command(out, *, n_objects, n_frames, image_size, seed, noise, con
     >>> shlex.split(cmd)[:2]
     ['python', '-c']
     >>> shlex.split(cmd)[2].split("; ")  # doctest: +NORMALIZE_WHITESPACE
-    ['from flowtrack.demo import DemoConfig, run_demo',
+    ['from flowtrack_course.demo import DemoConfig, run_demo',
      'run_demo(out="out", noise=0.004, config=DemoConfig(lam=2.0))']
     """
     import inspect
@@ -911,7 +912,7 @@ def _reproduce_command(out, *, n_objects, n_frames, image_size, seed, noise, con
             opts = dict(opts, stereo=True) if stereo else opts
             text += [f"input_dir={_py(input_dir)}", f"input_options={_py(opts)}"]
         return "python -c " + shlex.quote(
-            f"from flowtrack.demo import DemoConfig, run_demo; run_demo({', '.join(text)})")
+            f"from flowtrack_course.demo import DemoConfig, run_demo; run_demo({', '.join(text)})")
 
     cmd = ["flowtrack", "demo", "--out", str(out)]  # the options in the order of `flowtrack demo --help`
     for k, flag in (("n_objects", "--objects"), ("n_frames", "--frames"), ("image_size", None),
@@ -1011,7 +1012,7 @@ def run_demo(
     scene, cam, dt = inp.scene, inp.camera, inp.dt
     rng = np.random.default_rng(seed)
 
-    from .tracking import MultiObjectTracker
+    from flowtrack.tracking import MultiObjectTracker
 
     tracker = MultiObjectTracker(dt=dt, q=cfg.track_q, r=cfg.track_r, dim=3, min_hits=cfg.min_hits,
                                  max_misses=cfg.max_misses, gate_prob=cfg.gate_prob)
@@ -1097,7 +1098,7 @@ def run_demo(
     if scene is not None:
         from sklearn.metrics import adjusted_rand_score
 
-        from .metrics import clear_mot
+        from flowtrack.metrics import clear_mot
 
         summary["scene"] = {"scenario": scenario, "n_objects": n_objects, "n_frames": inp.n,
                             "frames_rendered": len(scene.frames), "image_size": list(image_size),
@@ -1136,7 +1137,7 @@ def run_demo(
     if real_data:
         figures["motorcycle"] = out / "motorcycle_flow.png"
         real = motorcycle_section(cfg, seed=seed, figure=figures["motorcycle"])
-        from .realdata import track_tud_campus
+        from flowtrack.realdata import track_tud_campus
 
         tud, centres, hyp = track_tud_campus(seed=seed, return_frames=True)
         figures["tud_campus"] = out / "tud_campus_tracks.png"

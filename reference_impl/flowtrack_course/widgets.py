@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validation import _scalar
+from flowtrack._validation import _scalar
 
 __all__ = ["Choice", "InteractiveResult", "Slider", "interactive_or_static", "widget_frontend_available"]
 
@@ -324,7 +324,9 @@ def interactive_or_static(
         raise ValueError("params: give at least one Slider or Choice as a keyword argument")
     for name, p in params.items():
         if not isinstance(p, (Slider, Choice)):
-            raise TypeError(f"{name} must be a flowtrack.widgets.Slider or Choice, got {type(p).__name__}")
+            raise TypeError(
+                f"{name} must be a flowtrack_course.widgets.Slider or Choice, got {type(p).__name__}"
+            )
     _check_fn(fn, list(params))
     size = np.asarray(panel_size, dtype=float) if not isinstance(panel_size, str) else np.zeros(0)
     if size.shape != (2,) or not np.all(np.isfinite(size)) or not np.all(size > 0):

@@ -7,11 +7,11 @@ The student controls the code of the graded cells and wants a higher score than 
 grader controls everything else. Defences, outermost first, and what each one stops:
 
 1. **Separate process, data-only protocol.** The grader never imports, compiles or executes
-   student code. A fresh ``python -I -S`` child runs :mod:`flowtrack.grading._child`, receives the
+   student code. A fresh ``python -I -S`` child runs :mod:`flowtrack_course.grading._child`, receives the
    cells and the inputs (length-prefixed JSON on stdin) and sends back plain data (length-prefixed
    JSON on a dedicated pipe). Expected values never leave the grader; the grader decodes at most
    ``Limits.output_bytes`` per batch with :func:`json.loads` and compares with its own numpy
-   (:func:`flowtrack.grading.spec.compare_arrays`). This stops monkeypatching numpy / numpy.testing,
+   (:func:`flowtrack_course.grading.spec.compare_arrays`). This stops monkeypatching numpy / numpy.testing,
    objects whose ``__eq__`` lies, lying ndarray subclasses (only the raw buffer is serialised, and
    the grader re-checks exact JSON types), ``sys.exit``/``os._exit`` (the batch's unanswered calls
    fail; the next batch gets a fresh child) and forged result files (scores never come from exit
@@ -20,7 +20,7 @@ grader controls everything else. Defences, outermost first, and what each one st
    namespaces; ``--die-with-parent``, ``--new-session``; a fresh root holding only read-only binds of
    ``/usr`` (and the ``/lib*`` links), the Python runtime, the virtual environment's
    site-packages, a *filtered copy* of flowtrack (blocked modules replaced by stubs that raise
-   ``ImportError``, ``flowtrack.grading`` and the course tooling removed) and the runner. The
+   ``ImportError``, ``flowtrack_course.grading`` and the course tooling removed) and the runner. The
    student's empty temporary directory is the only writable place: its ``home`` is bound at cwd
    and HOME, its ``tmp`` at ``/tmp``; bubblewrap's own root and ``/dev`` (tmpfs, i.e. RAM that no
    rlimit covers) are remounted read-only, and the grader measures the directory while it waits
@@ -677,7 +677,7 @@ class Sandbox:
     ----------
     cells : sequence of (str, str)
         ``(grade_id, source)`` of the answer cells, executed in order in one namespace
-        (see :func:`flowtrack.grading.notebook.extract_cells`).
+        (see :func:`flowtrack_course.grading.notebook.extract_cells`).
     blocked : sequence of str
         Modules the student may not import, e.g. ``"flowtrack.camera"`` or ``"scipy.optimize"``.
     limits : Limits
@@ -699,7 +699,7 @@ class Sandbox:
 
     Examples
     --------
-    >>> from flowtrack.grading.spec import Call
+    >>> from flowtrack_course.grading.spec import Call
     >>> with Sandbox([("a", "def add(a, b):\\n    return a + b\\n")]) as sb:
     ...     [o.value for o in sb.run([Call("add", (1, 2)), Call("add", ([1.5], [2.0]))], timeout=30)]
     [3, [1.5, 2.0]]
@@ -725,7 +725,7 @@ class Sandbox:
         if not isinstance(limits, Limits):
             raise TypeError("limits must be a Limits")
         self.cells = [(str(g), str(s)) for g, s in cells]
-        self.blocked = tuple(dict.fromkeys([*blocked, "flowtrack.grading"]))
+        self.blocked = tuple(dict.fromkeys([*blocked, "flowtrack_course.grading"]))
         self.limits = limits
         self.hidden_paths = tuple(str(Path(p).resolve()) for p in hidden_paths)
         self.cell_errors: dict[str, str] = {}
