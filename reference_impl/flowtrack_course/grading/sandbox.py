@@ -97,13 +97,16 @@ from typing import Any
 
 import numpy as np
 
+import flowtrack
+
 from .spec import Call, Outcome
 
 __all__ = ["Limits", "Sandbox", "SandboxUnavailable", "bwrap_status"]
 
 GiB = 1 << 30
 MiB = 1 << 20
-_FLOWTRACK_DIR = Path(__file__).resolve().parents[1]
+# the library package the sandbox copies (the course tooling, flowtrack_course, is blocked whole)
+_FLOWTRACK_DIR = Path(flowtrack.__file__).resolve().parent
 # Removed from the sandbox's copy of flowtrack: the grader itself and course tooling.
 _ALWAYS_REMOVED = ("grading", "ports", "cli", "book", "notebooks")
 _UID_BASE = 1_600_000_000
@@ -428,7 +431,7 @@ def _mirror_site(site: Path) -> Path:
         for dirpath, dirnames, filenames in os.walk(site):
             rel = Path(dirpath).relative_to(site)
             if rel == Path("."):
-                dirnames[:] = [d for d in dirnames if d != "flowtrack"]
+                dirnames[:] = [d for d in dirnames if d not in ("flowtrack", "flowtrack_course")]
             dirnames[:] = [d for d in dirnames if d != "__pycache__"]
             out = tmp / rel
             out.mkdir(mode=0o755, parents=True, exist_ok=True)
@@ -725,7 +728,7 @@ class Sandbox:
         if not isinstance(limits, Limits):
             raise TypeError("limits must be a Limits")
         self.cells = [(str(g), str(s)) for g, s in cells]
-        self.blocked = tuple(dict.fromkeys([*blocked, "flowtrack_course.grading"]))
+        self.blocked = tuple(dict.fromkeys([*blocked, "flowtrack_course"]))
         self.limits = limits
         self.hidden_paths = tuple(str(Path(p).resolve()) for p in hidden_paths)
         self.cell_errors: dict[str, str] = {}
