@@ -49,6 +49,8 @@ from pathlib import Path
 
 from flowtrack._validation import positive, positive_int
 
+from . import course as _course
+
 __all__ = [
     "BookResult",
     "build_book",
@@ -88,14 +90,10 @@ class BookResult:
     warnings: list[str] = field(default_factory=list)
 
 
-def course_root() -> Path:
-    """The repository root of this (editable) install: the folder holding ``lessons/``."""
-    root = Path(__file__).resolve().parents[2]
-    if not (root / "lessons").is_dir():
-        raise FileNotFoundError(
-            f"no lessons/ next to the flowtrack package (looked in {root}); pass root= explicitly"
-        )
-    return root
+def course_root(root=None) -> Path:
+    """The course folder holding ``lessons/`` and ``solutions/``: ``root`` (``--course``), else
+    ``$FLOWTRACK_COURSE``, else the current folder (:func:`flowtrack_course.course.course_root`)."""
+    return _course.course_root(root, need=("lessons", "solutions"))
 
 
 def rewrite_links(text: str, resolve: Callable[[str], str | None]) -> str:
@@ -333,7 +331,7 @@ def build_book(
         Output folder (created; an earlier book there is replaced; any other non-empty folder is
         refused).
     root : str or Path, optional
-        Repository root holding ``lessons/`` and ``solutions/`` (default: :func:`course_root`).
+        The course folder holding ``lessons/`` and ``solutions/`` (default: :func:`course_root`).
     execute : bool
         Run every notebook first (default). ``False`` renders the sources without outputs (fast,
         for checking layout and links only).
@@ -372,7 +370,7 @@ def build_book(
     from .notebooks import read_notebook
 
     t_start = time.perf_counter()
-    root = Path(root).resolve() if root is not None else course_root()
+    root = course_root(root)
     if jobs is None:
         jobs = max(1, min(2, os.cpu_count() or 1))
     jobs = positive_int(jobs, "jobs")
@@ -392,9 +390,19 @@ def build_book(
     try:
         executed: dict[Path, tuple[str, float]] = {}
         if execute:
-            executed = _execute_all(
-                [s.src for s in sources if s.notebook], jobs, timeout, src_dir / "_scratch", progress
-            )
+            # the kernels run in scratch folders: they find the course (lesson 7 reads the ports'
+            # vectors) through $FLOWTRACK_COURSE, which they inherit
+            saved = os.environ.get(_course.ENV)
+            os.environ[_course.ENV] = str(root)
+            try:
+                executed = _execute_all(
+                    [s.src for s in sources if s.notebook], jobs, timeout, src_dir / "_scratch", progress
+                )
+            finally:
+                if saved is None:
+                    os.environ.pop(_course.ENV, None)
+                else:
+                    os.environ[_course.ENV] = saved
         staged_of = {s.src.resolve(): s.staged for s in sources}
         dirs = {
             (root / "solutions").resolve(): "solutions/index.md",
@@ -497,7 +505,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "that reads offline (open OUT/index.html).",
     )
     parser.add_argument("--out", default="out/book", help="output folder (default: out/book)")
-    parser.add_argument("--root", default=None, help="repository root (default: this checkout)")
+    parser.add_argument("--course", "--root", dest="root", metavar="DIR", default=None,
+                        help="the course folder (default: $FLOWTRACK_COURSE, else the current folder)")
     parser.add_argument("--no-execute", action="store_true", help="render without running notebooks")
     parser.add_argument("--jobs", type=int, default=None, help="notebooks run at once (default: 2)")
     parser.add_argument("--timeout", type=float, default=600, help="seconds per cell (default: 600)")

@@ -89,7 +89,7 @@ def _cmd_gradescope(args: argparse.Namespace) -> int:
     from .gradescope import build_autograder
 
     _secret(args.secret_file)  # creates a missing key (and says so), or warns that there is none
-    path = build_autograder(args.out, secret_file=args.secret_file)
+    path = build_autograder(args.out, source=args.course, secret_file=args.secret_file)
     print(f"wrote {path} (upload it as the assignment's autograder; Ubuntu 24.04 base image)")
     return 0
 
@@ -107,7 +107,9 @@ def register(subparsers) -> None:
     )
     p.add_argument("--out", required=True, help="bundle folder (replaced if it is an earlier bundle)")
     p.add_argument(
-        "--source", default=None, help="course folder with exercises/ and lessons/ (default: found)"
+        "--course", "--source", dest="source", metavar="DIR", default=None,
+        help="the course folder with exercises/ and lessons/ (default: $FLOWTRACK_COURSE, else the "
+        "current folder)",
     )
     p.add_argument("--force", action="store_true", help="replace OUT even if it is not an earlier bundle")
     p.set_defaults(func=_cmd_release)
@@ -158,6 +160,11 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument("--out", default="autograder.zip", help="zip to write (default: autograder.zip)")
+    p.add_argument(
+        "--course", metavar="DIR", default=None,
+        help="the course checkout holding pyproject.toml and reference_impl/ (default: "
+        "$FLOWTRACK_COURSE, else the current folder)",
+    )
     _add_secret_option(p)
     p.set_defaults(func=_cmd_gradescope)
 

@@ -6,7 +6,8 @@ The zip holds::
                       ``pip install ./flowtrack[grading]`` into /autograder/venv (PyPI only)
     run_autograder    grades /autograder/submission as one student and writes
                       /autograder/results/results.json
-    flowtrack/        the package's source tree (pyproject.toml, README.md, reference_impl/flowtrack),
+    flowtrack/        the packages' source tree (pyproject.toml, README.md, reference_impl/flowtrack and
+                      reference_impl/flowtrack_course),
                       which carries the exercises' trusted test definitions
 
 ``run_autograder`` calls ``python -m flowtrack_course.grading.gradescope run`` (:func:`run_submission`); its
@@ -28,6 +29,8 @@ import re
 import sys
 import zipfile
 from pathlib import Path
+
+from ..course import course_root
 
 __all__ = ["build_autograder", "main", "run_submission", "student_from_metadata"]
 
@@ -75,15 +78,13 @@ exec "$PY" -m flowtrack_course.grading.gradescope run \\
 _SAFE = re.compile(r"[^A-Za-z0-9_.@+\-]")
 
 
-def _package_root() -> Path:
-    """The source tree holding pyproject.toml and reference_impl/flowtrack."""
-    root = Path(__file__).resolve().parents[3]
-    if not (root / "pyproject.toml").is_file() or not (root / "reference_impl" / "flowtrack").is_dir():
-        raise FileNotFoundError(
-            f"source: flowtrack's source tree (pyproject.toml, reference_impl/) not found at {root}; "
-            "build the autograder from a checkout of the course"
-        )
-    return root
+_PACKAGES = ("flowtrack", "flowtrack_course")  # the library and the grader that the zip installs
+
+
+def _package_root(course: str | os.PathLike | None = None) -> Path:
+    """The course checkout holding pyproject.toml and reference_impl/flowtrack{,_course}
+    (``--course``, else ``$FLOWTRACK_COURSE``, else the current folder)."""
+    return course_root(course, need=("pyproject.toml", *(f"reference_impl/{p}" for p in _PACKAGES)))
 
 
 def build_autograder(
@@ -94,7 +95,8 @@ def build_autograder(
 ) -> Path:
     """Write the Gradescope autograder zip to ``out`` (see the module docstring); returns its path.
 
-    Only the package (``reference_impl/flowtrack``), ``pyproject.toml`` and ``README.md`` are copied:
+    Only the packages (``reference_impl/flowtrack``, ``reference_impl/flowtrack_course``),
+    ``pyproject.toml`` and ``README.md`` are copied:
     no exercises, solutions, lessons or caches. With ``secret_file`` (created if missing, see
     :func:`~flowtrack_course.grading.spec.read_secret`) the key is added as ``secret`` (mode 0600: the
     sandbox's unprivileged uid cannot read it, and it is not bound into the sandbox) and seeds the
@@ -105,10 +107,11 @@ def build_autograder(
         from .spec import read_secret
 
         secret = read_secret(secret_file, create=True)
-    root = Path(source) if source is not None else _package_root()
-    pkg = root / "reference_impl" / "flowtrack"
-    if not pkg.is_dir():
-        raise FileNotFoundError(f"source: no reference_impl/flowtrack in {root}")
+    root = _package_root(source)
+    pkgs = [root / "reference_impl" / p for p in _PACKAGES]
+    for pkg in pkgs:
+        if not pkg.is_dir():
+            raise FileNotFoundError(f"source: no reference_impl/{pkg.name} in {root}")
     out = Path(out)
     if out.suffix != ".zip":
         raise ValueError(f"out must name a .zip file, got {out}")
@@ -129,7 +132,7 @@ def build_autograder(
         add(zf, "flowtrack/pyproject.toml", (root / "pyproject.toml").read_text(encoding="utf-8"))
         readme = root / "README.md"
         add(zf, "flowtrack/README.md", readme.read_text(encoding="utf-8") if readme.is_file() else "")
-        for p in sorted(pkg.rglob("*")):
+        for p in sorted(f for pkg in pkgs for f in pkg.rglob("*")):
             if not p.is_file() or "__pycache__" in p.parts or p.suffix in (".pyc", ".so", ".o"):
                 continue
             add(zf, f"flowtrack/{p.relative_to(root).as_posix()}", p.read_bytes())

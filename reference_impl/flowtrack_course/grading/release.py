@@ -24,6 +24,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from ..course import course_root
+
 __all__ = ["find_course_root", "release", "release_notebook", "scan_bundle"]
 
 MARKER = ".flowtrack-release"
@@ -65,27 +67,16 @@ test only. Your feedback lists the public tests in detail and the hidden tests b
 
 
 def find_course_root(start: str | os.PathLike | None = None) -> Path:
-    """The course folder (holding ``exercises/`` and ``lessons/``).
-
-    Searched from ``start`` (default: the current folder) upwards, then from the installed package's
-    source tree (an editable install lives in ``<course>/reference_impl/flowtrack``).
+    """The course folder (holding ``exercises/`` and ``lessons/``): ``start`` (``--course``), else
+    ``$FLOWTRACK_COURSE``, else the current folder (:func:`flowtrack_course.course.course_root`).
 
     Raises
     ------
     FileNotFoundError
-        No folder with both ``exercises/`` and ``lessons/`` was found.
+        That folder lacks ``exercises/`` or ``lessons/`` (the message says which and how to choose
+        another).
     """
-    candidates = []
-    here = Path(start or Path.cwd()).resolve()
-    candidates += [here, *here.parents]
-    pkg = Path(__file__).resolve().parents[3]
-    candidates += [pkg]
-    for c in candidates:
-        if (c / "exercises").is_dir() and (c / "lessons").is_dir():
-            return c
-    raise FileNotFoundError(
-        f"source: no course folder (with exercises/ and lessons/) at or above {here} or at {pkg}"
-    )
+    return course_root(start, need=("exercises", "lessons"))
 
 
 def _preprocessors():

@@ -19,6 +19,8 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..course import ports_dir, vectors_dir
+
 __all__ = [
     "CaseResult",
     "ToolchainMissing",
@@ -26,13 +28,19 @@ __all__ = [
     "failure",
     "harness_results",
     "parse_case_lines",
-    "PORTS_DIR",
-    "VECTORS_DIR",
 ]
 
-#: The repository's ports folder (sources of the ports, vectors/ and the build cache build/).
-PORTS_DIR = Path(__file__).resolve().parents[3] / "cpp_java_matlab_ports"
-VECTORS_DIR = PORTS_DIR / "vectors"
+
+
+def __getattr__(name: str) -> Path:
+    """``PORTS_DIR`` (the course's ports folder: sources, ``vectors/``, the build cache ``build/``)
+    and ``VECTORS_DIR``, looked up when read (``--course``/``$FLOWTRACK_COURSE``/the current folder,
+    see :mod:`flowtrack_course.course`)."""
+    if name == "PORTS_DIR":
+        return ports_dir()
+    if name == "VECTORS_DIR":
+        return vectors_dir()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class ToolchainMissing(RuntimeError):

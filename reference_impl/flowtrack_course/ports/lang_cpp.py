@@ -25,12 +25,12 @@ import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from .base import PORTS_DIR, CaseResult, ToolchainMissing, parse_case_lines
+from ..course import ports_dir
+from .base import CaseResult, ToolchainMissing, parse_case_lines
 
 __all__ = [
     "LANGUAGES",
     "DEBIAN_PACKAGES",
-    "SRC_DIR",
     "build",
     "check_toolchain",
     "run",
@@ -39,7 +39,16 @@ __all__ = [
 ]
 
 LANGUAGES: tuple[str, ...] = ("cpp-eigen", "cpp-pcl")
-SRC_DIR = PORTS_DIR / "cpp"
+
+def _src_dir() -> Path:
+    """The C++ sources in the course folder (see :mod:`flowtrack_course.course`)."""
+    return ports_dir() / "cpp"
+
+
+def __getattr__(name: str) -> Path:
+    if name == "SRC_DIR":  # read lazily: the course folder is chosen at run time
+        return _src_dir()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 DEBIAN_PACKAGES = (
     "g++",
     "cmake",
@@ -89,7 +98,7 @@ def _configured_for(cache: Path, src: Path) -> bool:
     return False
 
 
-def build(build_dir: Path | str, src_dir: Path | str = SRC_DIR) -> Path:
+def build(build_dir: Path | str, src_dir: Path | str | None = None) -> Path:
     """Configure (first time only) and build the CMake project; return ``<build_dir>/cpp``.
 
     Parameters
@@ -107,7 +116,7 @@ def build(build_dir: Path | str, src_dir: Path | str = SRC_DIR) -> Path:
         Configuration or compilation failed (the message holds the end of the compiler output).
     """
     check_toolchain()
-    src = Path(src_dir)
+    src = Path(src_dir) if src_dir is not None else _src_dir()
     out = Path(build_dir) / "cpp"
     out.mkdir(parents=True, exist_ok=True)
     with open(out / ".flowtrack-build.lock", "w") as lock:  # one build at a time in this folder

@@ -17,13 +17,23 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from .base import PORTS_DIR, CaseResult, ToolchainMissing, harness_results
+from ..course import ports_dir
+from .base import CaseResult, ToolchainMissing, harness_results
 
 __all__ = ["LANGUAGES", "run", "run_junit", "build"]
 
 LANGUAGES: tuple[str, ...] = ("java", "java-ejml", "java-opencv")
 
-SRC_DIR = PORTS_DIR / "java" / "src"
+
+def _src_dir() -> Path:
+    """The Java sources in the course folder (see :mod:`flowtrack_course.course`)."""
+    return ports_dir() / "java" / "src"
+
+
+def __getattr__(name: str) -> Path:
+    if name == "SRC_DIR":  # read lazily: the course folder is chosen at run time
+        return _src_dir()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 JAR_DIR = Path("/usr/share/java")
 JNI_DIRS = (
     Path("/usr/lib/jni"),
@@ -109,11 +119,11 @@ def build(build_dir: Path, tests: bool = False) -> tuple[Path, list[str]]:
     _tool("java")
     jars = _jars(_MAIN_JARS)
     out = Path(build_dir) / "java"
-    _javac(javac, out / "classes", jars, sorted((SRC_DIR / "main").rglob("*.java")))
+    _javac(javac, out / "classes", jars, sorted((_src_dir() / "main").rglob("*.java")))
     classpath = [str(out / "classes"), *jars]
     if tests:
         tjars = _jars(_TEST_JARS)
-        _javac(javac, out / "test-classes", classpath + tjars, sorted((SRC_DIR / "test").rglob("*.java")))
+        _javac(javac, out / "test-classes", classpath + tjars, sorted((_src_dir() / "test").rglob("*.java")))
         classpath = [str(out / "test-classes"), *classpath]
     return out, classpath
 

@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .base import PORTS_DIR, CaseResult, ToolchainMissing, compare_outputs, failure
+from ..course import ports_dir
+from .base import CaseResult, ToolchainMissing, compare_outputs, failure
 
 __all__ = [
     "LANGUAGES",
@@ -45,7 +46,16 @@ __all__ = [
 
 LANGUAGES: tuple[str, ...] = ("mathics",)
 PROBLEMS: tuple[str, ...] = ("kalman_cv2d", "white_noise_q", "projection_jacobian", "steady_state_scalar")
-SRC_DIR = PORTS_DIR / "mathematica"
+
+def _src_dir() -> Path:
+    """The Mathematica sources in the course folder (see :mod:`flowtrack_course.course`)."""
+    return ports_dir() / "mathematica"
+
+
+def __getattr__(name: str) -> Path:
+    if name == "SRC_DIR":  # read lazily: the course folder is chosen at run time
+        return _src_dir()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 SOURCES = ("KalmanCV2D.wl", "SteadyState.wl", "ProjectionJacobian.wl")
 
 
@@ -160,7 +170,7 @@ def run(vectors_dir: Path, build_dir: Path, *, reuse: bool = False) -> list[Case
                 results.append(failure("mathics", problem, f"bad input: {exc}", case["id"]))
     out = Path(build_dir) / "mathics"
     out.mkdir(parents=True, exist_ok=True)
-    src_hash = hashlib.sha256(b"".join((SRC_DIR / s).read_bytes() for s in SOURCES)).hexdigest()
+    src_hash = hashlib.sha256(b"".join((_src_dir() / s).read_bytes() for s in SOURCES)).hexdigest()
     keys = [hashlib.sha256((src_hash + e).encode()).hexdigest() for e in jobs]
     store = out / "answers.json"
     cache = json.loads(store.read_text()) if reuse and store.exists() else {}
@@ -170,7 +180,7 @@ def run(vectors_dir: Path, build_dir: Path, *, reuse: bool = False) -> list[Case
     tail, returncode = "", 0
     if todo:
         job = out / "job.json"
-        sources = [str(SRC_DIR / s) for s in SOURCES]
+        sources = [str(_src_dir() / s) for s in SOURCES]
         job.write_text(json.dumps({"sources": sources, "expressions": [jobs[i] for i in todo]}))
         proc = subprocess.run([sys.executable, "-m", __name__, str(job)], capture_output=True, text=True)
         returncode = proc.returncode

@@ -12,12 +12,22 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from .base import PORTS_DIR, CaseResult, ToolchainMissing, harness_results
+from ..course import ports_dir
+from .base import CaseResult, ToolchainMissing, harness_results
 
-__all__ = ["LANGUAGES", "run", "SRC_DIR"]
+__all__ = ["LANGUAGES", "run"]
 
 LANGUAGES: tuple[str, ...] = ("octave",)
-SRC_DIR = PORTS_DIR / "octave"
+
+def _src_dir() -> Path:
+    """The Octave sources in the course folder (see :mod:`flowtrack_course.course`)."""
+    return ports_dir() / "octave"
+
+
+def __getattr__(name: str) -> Path:
+    if name == "SRC_DIR":  # read lazily: the course folder is chosen at run time
+        return _src_dir()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _octave() -> str:
@@ -55,5 +65,5 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
     """
     octave = _octave()
     cmd = [octave, "--no-gui", "--no-window-system", "--quiet", "--no-init-file", "--no-history"]
-    cmd += ["--path", str(SRC_DIR), "--eval", f"run_vectors({_quote(Path(vectors_dir).resolve())});"]
-    return harness_results("octave", subprocess.run(cmd, capture_output=True, text=True, cwd=SRC_DIR))
+    cmd += ["--path", str(_src_dir()), "--eval", f"run_vectors({_quote(Path(vectors_dir).resolve())});"]
+    return harness_results("octave", subprocess.run(cmd, capture_output=True, text=True, cwd=_src_dir()))

@@ -14,7 +14,9 @@ import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from .base import PORTS_DIR, VECTORS_DIR, CaseResult, ToolchainMissing, failure
+from ..course import add_course_option, ports_dir, use_course
+from ..course import vectors_dir as _course_vectors
+from .base import CaseResult, ToolchainMissing, failure
 
 __all__ = ["LANG_MODULES", "format_table", "register", "run_ports"]
 
@@ -27,13 +29,18 @@ LANG_MODULES: dict[str, str] = {
     "blocks": "flowtrack_course.ports.lang_blocks",
 }
 
-DEFAULT_BUILD_DIR = PORTS_DIR / "build"
+
+
+def __getattr__(name: str) -> Path:
+    if name == "DEFAULT_BUILD_DIR":  # the build cache inside the course folder, looked up when read
+        return ports_dir() / "build"
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def run_ports(
     langs: Iterable[str] | None = None,
-    vectors_dir: Path | str = VECTORS_DIR,
-    build_dir: Path | str = DEFAULT_BUILD_DIR,
+    vectors_dir: Path | str | None = None,
+    build_dir: Path | str | None = None,
     progress: bool = False,
 ) -> list[CaseResult]:
     """Build and run the ports of the given language families on a vectors folder.
@@ -42,10 +49,12 @@ def run_ports(
     ----------
     langs : iterable of str, optional
         Keys of :data:`LANG_MODULES` (default: all).
-    vectors_dir : path
-        Folder of ``<problem>.json`` vector files.
-    build_dir : path
-        Build cache shared by the languages (each uses its own sub-folder).
+    vectors_dir : path, optional
+        Folder of ``<problem>.json`` vector files (default: the course's
+        ``cpp_java_matlab_ports/vectors``, see :mod:`flowtrack_course.course`).
+    build_dir : path, optional
+        Build cache shared by the languages (each uses its own sub-folder; default: the course's
+        ``cpp_java_matlab_ports/build``).
     progress : bool
         Show a tqdm progress bar over the language families.
 
@@ -56,6 +65,8 @@ def run_ports(
         becomes a failed result with problem ``toolchain``, ``error`` or ``no-cases``.
     """
     names = list(LANG_MODULES) if langs is None else list(langs)
+    vectors_dir = _course_vectors() if vectors_dir is None else vectors_dir
+    build_dir = ports_dir() / "build" if build_dir is None else build_dir
     for name in names:
         if name not in LANG_MODULES:
             raise ValueError(f"langs must be among {sorted(LANG_MODULES)}, got {name!r}")
@@ -141,6 +152,11 @@ def format_table(results: Sequence[CaseResult]) -> str:
 
 
 def _cmd_ports(args: argparse.Namespace) -> int:
+    use_course(args.course, need=("cpp_java_matlab_ports",))
+    if args.vectors is None:
+        args.vectors = _course_vectors()
+    if args.build_dir is None:
+        args.build_dir = ports_dir() / "build"
     if args.regenerate:
         from .vectors import write_vectors
 
@@ -176,9 +192,10 @@ def register(subparsers) -> None:
         help="language family to run (repeatable; default: all)",
     )
     p.add_argument("--regenerate", action="store_true", help="rewrite the vector files from the reference")
-    p.add_argument("--vectors", type=Path, default=VECTORS_DIR, help="vector folder (default: %(default)s)")
-    p.add_argument(
-        "--build-dir", type=Path, default=DEFAULT_BUILD_DIR, help="build cache (default: %(default)s)"
-    )
+    add_course_option(p)
+    p.add_argument("--vectors", type=Path, default=None,
+                   help="vector folder (default: COURSE/cpp_java_matlab_ports/vectors)")
+    p.add_argument("--build-dir", type=Path, default=None,
+                   help="build cache (default: COURSE/cpp_java_matlab_ports/build)")
     p.add_argument("--no-progress", action="store_true", help="do not show progress bars")
     p.set_defaults(func=_cmd_ports)

@@ -61,7 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .base import VECTORS_DIR
+from ..course import vectors_dir as _course_vectors
 from .vectors_extra import lucas_kanade, steady_state_scalar
 
 __all__ = ["PROBLEMS", "dumps", "generate", "problem_names", "load_vectors", "write_vectors"]
@@ -449,14 +449,14 @@ def generate(problem: str) -> dict:
 
 
 def write_vectors(
-    out_dir: Path | str = VECTORS_DIR, problems: Iterable[str] | None = None, progress: bool = False
+    out_dir: Path | str | None = None, problems: Iterable[str] | None = None, progress: bool = False
 ) -> list[Path]:
     """Write ``<out_dir>/<problem>.json`` for the given problems (default: all).
 
     Parameters
     ----------
-    out_dir : path
-        Folder (created if missing).
+    out_dir : path, optional
+        Folder (created if missing; default: the course's ``cpp_java_matlab_ports/vectors``).
     problems : iterable of str, optional
         Subset of :func:`problem_names`.
     progress : bool
@@ -471,7 +471,7 @@ def write_vectors(
     for name in names:
         if name not in PROBLEMS:
             raise ValueError(f"problems must be among {problem_names()}, got {name!r}")
-    out = Path(out_dir)
+    out = Path(out_dir) if out_dir is not None else _course_vectors()
     out.mkdir(parents=True, exist_ok=True)
     written = []
     iterator: Iterable[str] = names
@@ -486,9 +486,10 @@ def write_vectors(
     return written
 
 
-def load_vectors(vectors_dir: Path | str = VECTORS_DIR) -> dict[str, dict]:
-    """Read every ``*.json`` problem document of a folder into ``{problem: doc}``."""
-    d = Path(vectors_dir)
+def load_vectors(vectors_dir: Path | str | None = None) -> dict[str, dict]:
+    """Read every ``*.json`` problem document of a folder (default: the course's vectors) into
+    ``{problem: doc}``."""
+    d = Path(vectors_dir) if vectors_dir is not None else _course_vectors()
     if not d.is_dir():
         raise FileNotFoundError(f"vectors_dir {d} is not a folder (run `flowtrack ports --regenerate`)")
     return {p.stem: json.loads(p.read_text(encoding="utf-8")) for p in sorted(d.glob("*.json"))}
