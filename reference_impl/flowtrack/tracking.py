@@ -545,6 +545,40 @@ class MultiObjectTracker:
             out = {tid: h for tid, h in out.items() if tid in ever_confirmed}
         return out
 
+    def predict_ahead(self, n: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        r"""Every live track predicted ``n`` frames past the last :meth:`step`, without updates.
+
+        The tracker's own motion model applied ``n`` times, :math:`x \leftarrow F x`,
+        :math:`P \leftarrow F P F^\top + Q`, on a copy of its filter (the tracker is not changed).
+
+        Parameters
+        ----------
+        n : int, >= 1
+            Frames ahead.
+
+        Returns
+        -------
+        dict
+            Track id -> ``(x (2*dim,), P (2*dim, 2*dim))``, the predicted state and covariance, for
+            every live track (tentative ones included, as :attr:`tracks`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> trk = MultiObjectTracker(dt=0.5, q=0.0, r=1e-4, dim=2, min_hits=1)
+        >>> _ = trk.step(np.array([[0.0, 0.0]]), velocities=np.array([[1.0, 2.0]]))
+        >>> x, P = trk.predict_ahead(4)[0]
+        >>> x.round(6).tolist()          # 4 frames of 0.5 s at (1, 2) m/s, q = 0
+        [2.0, 4.0, 1.0, 2.0]
+        """
+        import copy
+
+        n = positive_int(n, "n")
+        kf = copy.deepcopy(self.kf)
+        for _ in range(n):
+            kf.predict()
+        return {tid: (kf.x[i].copy(), kf.P[i].copy()) for i, tid in enumerate(self._ids.tolist())}
+
     def __repr__(self) -> str:
         counts = {s: sum(t.status == s for t in self._snapshot) for s in STATUSES}
         return (

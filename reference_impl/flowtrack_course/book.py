@@ -52,7 +52,10 @@ from flowtrack._validation import positive, positive_int
 from . import course as _course
 
 __all__ = [
+    "API_PACKAGES",
+    "API_PAGE",
     "BookResult",
+    "api_modules",
     "build_book",
     "course_root",
     "main",
@@ -244,7 +247,57 @@ def _index_toc(sources: list[_Source]) -> str:
     lines += [s.staged.rsplit(".", 1)[0] for s in lessons]
     lines += ["```", "", "```{toctree}", ":maxdepth: 1", ":caption: Solutions", ""]
     lines += ["solutions/index"]
+    lines += ["```", "", "```{toctree}", ":maxdepth: 1", ":caption: Reference", ""]
+    lines += [API_PAGE.removesuffix(".md")]
     lines += ["```", ""]
+    return "\n".join(lines)
+
+
+#: The API reference's page in the book (``api.html``), generated from the docstrings.
+API_PAGE = "api.md"
+#: The packages it documents: the library, then the course's tooling.
+API_PACKAGES = (
+    ("flowtrack", "The library: flowtrack",
+     "What lessons, exercises and ports are checked against; it never imports the tooling."),
+    ("flowtrack_course", "The course's tooling: flowtrack_course",
+     "Grading, port harnesses, the book, notebooks, widgets, the demo app and the ``flowtrack`` command."),
+)
+
+
+def api_modules(package: str) -> list[str]:
+    """The public modules of ``package`` (itself first, then every module and sub-package whose
+    dotted name has no part starting with ``_``), sorted.
+
+    Examples
+    --------
+    >>> mods = api_modules("flowtrack")
+    >>> mods[0], "flowtrack.kalman" in mods, any(m.startswith("flowtrack._") for m in mods)
+    ('flowtrack', True, False)
+    """
+    import importlib
+    import pkgutil
+
+    pkg = importlib.import_module(package)
+    names = [m.name for m in pkgutil.walk_packages(pkg.__path__, prefix=package + ".")]
+    return [package, *sorted(n for n in names if not any(p.startswith("_") for p in n.split(".")))]
+
+
+def _api_page() -> str:
+    """The API reference (MyST): one autodoc section per public module of :data:`API_PACKAGES`
+    (docstrings in numpy style, rendered by napoleon)."""
+    lines = [
+        "# API reference",
+        "",
+        "Every public module of the two packages, generated from the docstrings (the contracts: names,",
+        "arguments, shapes, raised errors). `flowtrack` is the library; `flowtrack_course` the tooling",
+        "built on it (see the architecture notes, `docs/ARCHITECTURE.md` in the repository).",
+        "",
+    ]
+    for package, title, blurb in API_PACKAGES:
+        lines += [f"## {title}", "", blurb, ""]
+        for mod in api_modules(package):
+            lines += [f"### `{mod}`", "", "```{eval-rst}", f".. automodule:: {mod}", "   :members:",
+                      "   :show-inheritance:", "```", ""]
     return "\n".join(lines)
 
 
@@ -269,7 +322,7 @@ def _conf_py(title: str) -> str:
 project = {title!r}
 author = "flowtrack developers"
 copyright = "flowtrack developers, MIT licence"
-extensions = ["myst_nb"]
+extensions = ["myst_nb", "sphinx.ext.autodoc", "sphinx.ext.napoleon"]
 root_doc = "index"
 exclude_patterns = ["_build", "_scratch", "_doctrees", "**.ipynb_checkpoints", "lessons/_static"]
 source_suffix = {{".md": "myst-nb", ".ipynb": "myst-nb"}}
@@ -294,6 +347,13 @@ html_static_path = [{mathjax_parent!r}]
 html_context = {{"default_mode": "light"}}  # else the theme logs an error on a fresh browser
 mathjax_path = "mathjax/tex-chtml.js"
 html_show_sourcelink = False
+# the API reference (api.md): numpy-style docstrings through napoleon
+autodoc_member_order = "bysource"
+autodoc_typehints = "none"         # the docstrings state the types (and shapes)
+autodoc_inherit_docstrings = False
+napoleon_google_docstring = False
+napoleon_use_ivar = True           # dataclass "Attributes" as fields, not a second description
+napoleon_use_rtype = False
 html_last_updated_fmt = None
 '''
 
@@ -451,6 +511,7 @@ def build_book(
         static = root / "lessons" / "_static"
         if static.is_dir():
             shutil.copytree(static, src_dir / "lessons" / "_static", dirs_exist_ok=True)
+        (src_dir / API_PAGE).write_text(_api_page(), encoding="utf-8")
         (src_dir / "conf.py").write_text(_conf_py(title), encoding="utf-8")
 
         _prepare_out(out)
@@ -484,6 +545,7 @@ def build_book(
     shutil.rmtree(out / ".doctrees", ignore_errors=True)
     pages = [out / (s.staged.rsplit(".", 1)[0] + ".html") for s in sources]
     pages.insert(pages.index(out / "index.html") + 1, out / "solutions" / "index.html")
+    pages.append(out / API_PAGE.replace(".md", ".html"))
     missing = [p for p in pages if not p.is_file()]
     if missing:
         raise RuntimeError(f"Sphinx did not write {missing}")

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..cli import _positive_int
+from ..argtypes import positive_int
 
 __all__ = ["register"]
 
@@ -137,7 +137,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("submissions", help="folder with one sub-folder per student")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--jobs", type=_positive_int, default=1, help="students graded in parallel (default: 1)")
+    p.add_argument("--jobs", type=positive_int, default=1, help="students graded in parallel (default: 1)")
     p.add_argument("--force", action="store_true", help="re-grade students whose results are up to date")
     p.add_argument(
         "--hidden-visibility",

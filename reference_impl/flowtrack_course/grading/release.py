@@ -184,9 +184,7 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
 
     from ..notebooks import is_jupytext_notebook, read_notebook, strip_outputs
 
-    root = find_course_root(source) if source is None else Path(source)
-    if not (root / "exercises").is_dir():
-        raise FileNotFoundError(f"source: no exercises/ folder in {root}")
+    root = find_course_root(source)
     out = Path(out).resolve()
     course = root.resolve()
     if course.is_relative_to(out) or any(
