@@ -115,6 +115,38 @@ def test_every_book_page_in_headless_chromium(book, tmp_path):
     assert len(list(shots.glob("*.png"))) == len(pages)
 
 
+@pytest.mark.slow
+@pytest.mark.xdist_group("book")
+def test_api_reference_documents_every_public_module_from_its_docstrings(book):
+    """api.html: a section per public module of both packages, the docstrings rendered (numpy style
+    through napoleon: parameter lists, not raw "Parameters\n----------" text)."""
+    import importlib
+    import inspect
+
+    from flowtrack_course.book import API_PACKAGES, api_modules
+
+    page = book.out / "api.html"
+    assert page in book.pages
+    html = page.read_text(encoding="utf-8")
+    for package, _, _ in API_PACKAGES:
+        mods = api_modules(package)
+        assert len(mods) > 5, mods
+        for mod in mods:
+            assert f'id="module-{mod}"' in html, f"{mod} is not in the API reference"
+            module = importlib.import_module(mod)
+            for name in getattr(module, "__all__", []):
+                obj = getattr(module, name, None)
+                if (inspect.isfunction(obj) or inspect.isclass(obj)) and obj.__module__ == mod:
+                    assert f'id="{mod}.{name}"' in html, f"{mod}.{name} is not documented"
+    for anchor in ("flowtrack.pipeline.cloud_from_depth", "flowtrack_course.course.course_root",
+                   "flowtrack.tracking.MultiObjectTracker.predict_ahead",
+                   "flowtrack.variational.solve_component"):
+        assert f'id="{anchor}"' in html, anchor
+    n_param_lists = len(re.findall(r'<dt class="field-\w+">Parameters', html))
+    assert n_param_lists > 50, n_param_lists  # napoleon's field lists
+    assert not re.search(r"(Parameters|Returns|Raises)\s*(<[^>]+>\s*)*-{4,}", html)  # no raw numpy headings
+
+
 # ----------------------------------------------------------------------------------------------------
 # the checker can fail
 # ----------------------------------------------------------------------------------------------------

@@ -354,6 +354,7 @@ autodoc_inherit_docstrings = False
 napoleon_google_docstring = False
 napoleon_use_ivar = True           # dataclass "Attributes" as fields, not a second description
 napoleon_use_rtype = False
+napoleon_use_param = False         # types as written ("array_like, shape (N, 3)"), not cross-references
 html_last_updated_fmt = None
 '''
 
