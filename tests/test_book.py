@@ -247,4 +247,4 @@ def test_build_book_stops_at_a_failing_notebook(tmp_path):
     )
     res = build_book(tmp_path / "site", root=tmp_path, progress=False, jobs=1)
     assert 'href="lessons/01_one.html"' in (res.out / "index.html").read_text(encoding="utf-8")
-    assert [p.name for p in res.pages] == ["index.html", "index.html", "01_one.html"]
+    assert [p.name for p in res.pages] == ["index.html", "index.html", "01_one.html", "api.html"]

@@ -60,6 +60,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``flowtrack`` parser: ``demo`` and the sub-commands of ``_SUBCOMMAND_MODULES``."""
     parser = argparse.ArgumentParser(
         prog="flowtrack",
         description="Scene flow and object tracking for robot manipulation: the course's reference tools.",
@@ -89,6 +90,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``flowtrack`` with ``argv`` (default: ``sys.argv[1:]``); returns the exit status (2 on
+    bad input)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

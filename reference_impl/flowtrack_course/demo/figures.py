@@ -47,6 +47,7 @@ def _ellipse(ax, mean, cov, nsig: float = 2.0, **kw) -> None:
 
 
 def plot_flow_field(inp: DemoInput, pair: FlowPair, path: Path) -> None:
+    """True and estimated scene flow of one frame pair as image-plane arrows over the RGB image."""
     plt = _plt()
     from matplotlib.colors import Normalize
 
@@ -165,6 +166,7 @@ def plot_clusters(inp: DemoInput, pair: FlowPair, path: Path) -> None:
 
 
 def plot_motorcycle(case: dict, estimate: np.ndarray, path: Path) -> None:
+    """Known and estimated scene flow on the Motorcycle cloud (300 random points as arrows)."""
     from flowtrack.realdata import motorcycle_camera, motorcycle_depth
 
     plt = _plt()
@@ -266,6 +268,7 @@ def plot_trajectories(inp, hist, gt_hist, preds, path: Path) -> None:
 
 
 def write_gif(inp, snapshots, path: Path) -> None:
+    """The tracks over the sequence, one frame per processed frame pair (``tracks.gif``)."""
     plt = _plt()
     from matplotlib.animation import FuncAnimation, PillowWriter
 

@@ -370,6 +370,7 @@ def json_number(v):
 
 
 def json_default(o):
+    """``json.dumps``' ``default``: numpy arrays and scalars, paths."""
     if isinstance(o, np.ndarray):
         return o.tolist()
     if isinstance(o, np.generic):

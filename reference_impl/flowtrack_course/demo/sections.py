@@ -13,6 +13,7 @@ __all__ = ["echo_summary", "flow_table", "prediction_table", "report_sections", 
 
 
 def flow_table(metrics: dict[str, dict[str, dict[str, float]]], caption: str = "") -> Table:
+    """FlowNet3D metrics of each scene-flow method, as a report table."""
     rows = []
     for name, m in metrics.items():
         a, mv = m["all"], m["moving"]
@@ -24,6 +25,7 @@ def flow_table(metrics: dict[str, dict[str, dict[str, float]]], caption: str = "
 
 
 def tracking_table(tr: dict) -> Table:
+    """CLEAR-MOT of the demo's tracks, as a report table."""
     return Table(["MOTA", "MOTP (mm)", "IDF1", "ID switches", "FP", "FN", "matches"],
                  [[tr["mota"], 1000 * tr["motp"], tr["idf1"], int(tr["id_switches"]), int(tr["fp"]),
                    int(tr["fn"]), int(tr["matches"])]],
@@ -34,6 +36,7 @@ def tracking_table(tr: dict) -> Table:
 
 
 def prediction_table(preds: list, has_truth: bool, ahead: int) -> Table:
+    """Every track's prediction ``ahead`` frames on (and, with ground truth, its errors)."""
     def mm(v):
         return None if v is None else 1000.0 * v
 
@@ -60,6 +63,8 @@ def prediction_table(preds: list, has_truth: bool, ahead: int) -> Table:
 
 
 def report_sections(inp, summary, figures, real, tud) -> list[Section]:
+    """The report's sections: input and pipeline, scene flow, tracking and prediction, real data,
+    reproduce."""
     scene = inp.scene
     secs = []
     cam = inp.camera
@@ -164,6 +169,7 @@ def report_sections(inp, summary, figures, real, tud) -> list[Section]:
 
 
 def echo_summary(echo, inp, summary, sections, out) -> None:
+    """Print the run's summary (tables in Markdown) through ``echo``."""
     echo("")
     echo(f"flowtrack demo: {inp.name}, {inp.n} frames, {inp.camera.width}x{inp.camera.height} px, "
          f"{summary['points_per_cloud']} points per cloud")
