@@ -22,7 +22,11 @@ from flowtrack_course.notebooks import is_jupytext_notebook
 
 ROOT = Path(__file__).resolve().parents[1]
 # myst-nb and sphinx-book-theme still use attributes that Sphinx 9 deprecates for Sphinx 11
-pytestmark = pytest.mark.filterwarnings("ignore:.*Check CHANGES for Sphinx API modifications")
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:.*Check CHANGES for Sphinx API modifications"),
+    # napoleon (Sphinx 9) itself reads autodoc's options the old way (the API reference)
+    pytest.mark.filterwarnings("ignore:The mapping interface for autodoc options"),
+]
 _MD_LINK = re.compile(r"(?<!!)\[[^\]\n]*\]\(([^)\s#]+\.md)(#[^)\s]*)?\)")
 
 
