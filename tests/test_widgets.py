@@ -181,7 +181,7 @@ def test_interactive_or_static_bad_input():
         interactive_or_static(42, a=s, show=False)
     with pytest.raises(TypeError, match="fn must accept"):
         interactive_or_static(lambda ax, a: None, b=s, show=False)
-    with pytest.raises(TypeError, match=r"a must be a flowtrack\.widgets\.Slider"):
+    with pytest.raises(TypeError, match=r"a must be a flowtrack_course\.widgets\.Slider"):
         interactive_or_static(line, a=(0.0, 1.0), show=False)
     with pytest.raises(ValueError, match="mode"):
         interactive_or_static(line, a=s, mode="browser", show=False)
