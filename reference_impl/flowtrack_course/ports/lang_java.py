@@ -4,7 +4,7 @@ Sources: ``cpp_java_matlab_ports/java/src/{main,test}/java/flowtrack/ports/``. T
 ``javac``/``java`` and Debian's jars under ``/usr/share/java`` (gson, EJML, OpenCV + its JNI library,
 the JUnit 5 console launcher); no Maven. Classes go to ``<build_dir>/java/``.
 
-The harness ``flowtrack_course.ports.Harness <language> <vectors_dir>`` is run once per language in
+The harness ``flowtrack.ports.Harness <language> <vectors_dir>`` is run once per language in
 :data:`LANGUAGES` and prints ``CASE`` lines (see :mod:`flowtrack_course.ports.base`); :func:`run_junit`
 runs the JUnit 5 suite over the same vectors.
 """
@@ -154,7 +154,7 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
     results: list[CaseResult] = []
     for lang in LANGUAGES:
         cmd = [java, f"-Djava.library.path={jni}", "-cp", os.pathsep.join(classpath)]
-        cmd += ["flowtrack_course.ports.Harness", lang, str(vectors_dir)]
+        cmd += ["flowtrack.ports.Harness", lang, str(vectors_dir)]
         results += harness_results(lang, subprocess.run(cmd, capture_output=True, text=True))
     return results
 
@@ -178,6 +178,6 @@ def run_junit(vectors_dir: Path, build_dir: Path) -> tuple[bool, str]:
         "--class-path",
         os.pathsep.join(classpath),
     ]
-    cmd += ["--select-class", "flowtrack_course.ports.PortsTest"]
+    cmd += ["--select-class", "flowtrack.ports.PortsTest"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     return proc.returncode == 0, proc.stdout + proc.stderr
