@@ -7,6 +7,7 @@ The reference implementation of the flowtrack course. Modules:
 - :mod:`flowtrack.clustering` – motion clustering of scene flow into objects (Problem 5).
 - :mod:`flowtrack.kalman`, :mod:`flowtrack.bayes`, :mod:`flowtrack.particle` – Bayes filtering.
 - :mod:`flowtrack.association`, :mod:`flowtrack.tracking` – data association, multi-object tracker.
+- :mod:`flowtrack.pipeline` – frames → clouds → scene flow → clusters → detections (the first flowchart).
 - :mod:`flowtrack.metrics` – CLEAR-MOT and identity metrics.
 - :mod:`flowtrack.synth` – synthetic RGB-D scenes with exact ground truth.
 - :mod:`flowtrack.realdata` – real data shipped inside installed packages (Middlebury Motorcycle).
@@ -32,6 +33,7 @@ _SUBMODULES = {
     "particle",
     "association",
     "tracking",
+    "pipeline",
     "metrics",
     "synth",
     "realdata",
