@@ -59,7 +59,7 @@ bench: $(STAMP)
 
 # The lessons and solutions, executed, as a static site that reads offline: open $(OUT)/book/index.html
 book: $(STAMP)
-	$(PY) -m flowtrack.book --out $(OUT)/book
+	$(PY) -m flowtrack_course.book --out $(OUT)/book
 
 clean:
 	rm -rf $(OUT) .pytest_cache .ruff_cache

@@ -34,8 +34,8 @@ from pathlib import Path
 import nbformat
 
 from _results import publish
-from flowtrack.grading.exercises import EXERCISES
-from flowtrack.grading.release import release_notebook
+from flowtrack_course.grading.exercises import EXERCISES
+from flowtrack_course.grading.release import release_notebook
 
 ROOT = Path(__file__).resolve().parents[1]
 KINDS = ("solution", "stub", "partial")

@@ -58,7 +58,7 @@ from skimage.registration import optical_flow_tvl1  # noqa: E402
 
 from _results import publish  # noqa: E402
 from flowtrack.camera import PinholeCamera, backproject, scene_flow_from_optical_flow  # noqa: E402
-from flowtrack.realdata import MOTORCYCLE_CALIBRATION  # noqa: E402
+from flowtrack.datasets import MOTORCYCLE_CALIBRATION  # noqa: E402
 from flowtrack.sceneflow import nearest_neighbor_targets, rgbd_scene_flow, scene_flow_metrics  # noqa: E402
 from flowtrack.synth import make_scene  # noqa: E402
 

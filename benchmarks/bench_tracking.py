@@ -10,7 +10,7 @@ Targets: ``MultiObjectTracker.step`` >= 10x faster than the peer and >= 2,000 st
 
 Second section (issue 15), scene flow in the tracker, on the demo's pipeline (synthetic RGB-D frames →
 clouds → graph scene flow with re-matching → motion clusters → rigid flow per cluster → detections with
-their velocities, by ``flowtrack.demo.estimate_clouds`` and ``flowtrack.demo.detect_objects``):
+their velocities, by ``flowtrack_course.demo.estimate_clouds`` and ``flowtrack_course.demo.detect_objects``):
 ``flowtrack.tracking_eval.tracking_ablation`` runs position-only and flow-aided tracking (velocity
 measurements in the update) on the same detections. Targets: over the crossing, mixed and occlusion
 scenarios and several seeds, flow-aided never has more ID switches and never a MOTA lower by more than
@@ -247,9 +247,9 @@ def scene_detections(scenario, seed, n_frames=FLOW_FRAMES, image_size=FLOW_IMAGE
     visible pixels as a detection needs, as the demo scores), ``dt``, ``up`` (the table normal in the
     camera frame) and ``scene``.
     """
-    from flowtrack.demo import DemoConfig, detect_objects, estimate_clouds
     from flowtrack.motion import detection_velocity_covariances
     from flowtrack.synth import make_scene
+    from flowtrack_course.demo import DemoConfig, detect_objects, estimate_clouds
 
     cfg = DemoConfig()
     scene = make_scene(n_objects=3 if scenario != "turning" else 2, n_frames=n_frames, image_size=image_size,

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from flowtrack.grading.exercises import plain_data
-from flowtrack.grading.spec import Outcome
+from flowtrack_course.grading.exercises import plain_data
+from flowtrack_course.grading.spec import Outcome
 
 
 class RecordingSandbox:

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from flowtrack.ports.base import VECTORS_DIR, CaseResult, ToolchainMissing
-from flowtrack.ports.runner import DEFAULT_BUILD_DIR as BUILD_DIR
-from flowtrack.ports.vectors import dumps
+from flowtrack_course.ports.base import VECTORS_DIR, CaseResult, ToolchainMissing
+from flowtrack_course.ports.runner import DEFAULT_BUILD_DIR as BUILD_DIR
+from flowtrack_course.ports.vectors import dumps
 
 __all__ = [
     "BUILD_DIR",

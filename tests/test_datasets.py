@@ -173,12 +173,3 @@ def test_load_mot_challenge(tmp_path):
         load_mot_challenge(bad)
     with pytest.raises(ValueError, match="path"):
         load_mot_challenge(tmp_path / "missing.txt")
-
-
-
-def test_deprecated_realdata_path_reexports_the_datasets_names():
-    import flowtrack.datasets as datasets
-    import flowtrack.realdata as realdata
-
-    for name in realdata.__all__:
-        assert getattr(realdata, name) is getattr(datasets, name)

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from flowtrack.cli import main
-from flowtrack.demo import DemoConfig, detect_objects
+from flowtrack.pipeline import detections_from_clusters
 from flowtrack.synth import make_scene
+from flowtrack_course.cli import main
+from flowtrack_course.demo import DemoConfig
 
 FRAMES, AHEAD = 12, 3
 PROMISED = ("flow_field.png", "clusters_3d.png", "trajectories.png", "tracks.gif", "motorcycle_flow.png",
@@ -155,16 +156,16 @@ def test_full_report_opens_offline_in_headless_chromium(demo_out, tmp_path):
 
 
 def test_cluster_colours_follow_the_largest_overlap():
-    from flowtrack.demo import _cluster_colours
+    from flowtrack_course.demo.figures import cluster_colours
 
     truth = np.array([0, 1, 1, 1, 2, 2, 0, 3, 3])
     clusters = np.array([-1, 5, 5, 0, 0, 0, 2, 2, -1])  # 5 ~ object 1, 0 ~ object 2, 2 ~ object 3
-    assert _cluster_colours(clusters, truth) == {0: 2, 2: 3, 5: 1}
+    assert cluster_colours(clusters, truth) == {0: 2, 2: 3, 5: 1}
     # two clusters on one object: the larger keeps its colour, the other a free one (not 1..3)
     clusters = np.array([-1, 4, 4, 7, -1, -1, -1, -1, -1])
-    got = _cluster_colours(clusters, truth)
+    got = cluster_colours(clusters, truth)
     assert got[4] == 1 and got[7] not in (0, 1, 2, 3)
-    assert _cluster_colours(np.array([0, 1, -1]), None) == {0: 1, 1: 2}
+    assert cluster_colours(np.array([0, 1, -1]), None) == {0: 1, 1: 2}
 
 
 def test_mixed_scenario_has_an_occlusion_and_a_crossing():
@@ -199,16 +200,16 @@ def test_detect_objects_removes_the_table_splits_pieces_and_skips_static_surface
     flow[6400:6800] = [0.0, -0.1, 0.0]
     flow[6800:] = [0.1, 0.0, 0.0]  # the patch gets the first blob's rigid flow, tangential to it
     cfg = DemoConfig()
-    Z, V = detect_objects(P, labels, flow, cfg)
+    Z, V = detections_from_clusters(P, labels, flow, cfg)
     assert len(Z) == 3  # without the next frame the static patch cannot be told apart
     dt = 0.1
     Y = np.vstack([table, blobs[0] + dt * flow[6000], blobs[1] + dt * flow[6400], patch])
-    Z, V = detect_objects(P, labels, flow, cfg, next_points=Y, dt=dt)
+    Z, V = detections_from_clusters(P, labels, flow, cfg, next_points=Y, dt=dt)
     order = np.argsort(Z[:, 0])
     np.testing.assert_allclose(Z[order], [blobs[1].mean(axis=0), blobs[0].mean(axis=0)], atol=1e-12)
     np.testing.assert_allclose(V[order], [[0.0, -0.1, 0.0], [0.1, 0.0, 0.0]], atol=1e-12)
     with pytest.raises(ValueError, match="dt"):
-        detect_objects(P, labels, flow, cfg, next_points=Y)
+        detections_from_clusters(P, labels, flow, cfg, next_points=Y)
 
 
 @pytest.mark.parametrize(
@@ -225,7 +226,7 @@ def test_detect_objects_removes_the_table_splits_pieces_and_skips_static_surface
 def test_detect_objects_bad_input(kwargs, match):
     args = {"points": np.zeros((5, 3)), "clusters": np.zeros(5, dtype=int), "flow": np.zeros((5, 3))} | kwargs
     with pytest.raises(ValueError, match=match):
-        detect_objects(cfg=DemoConfig(), **args)
+        detections_from_clusters(config=DemoConfig(), **args)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -250,8 +251,8 @@ def test_tud_campus_section_has_its_figure(demo_out, summary):
 
 def test_tud_campus_figure_shows_the_scored_run():
     """The frames behind the figure are the run that track_tud_campus scores, matched as clear_mot does."""
+    from flowtrack.datasets import track_tud_campus
     from flowtrack.metrics import clear_mot
-    from flowtrack.realdata import track_tud_campus
 
     for seed in (0, 1):
         scored, centres, hyp = track_tud_campus(seed=seed, return_frames=True)
@@ -310,15 +311,16 @@ def test_reproduce_command_round_trips_through_the_cli(change, monkeypatch, tmp_
     import inspect
     import shlex
 
-    import flowtrack.demo as demo
+    import flowtrack_course.demo.run as demo_run
     from flowtrack.rgbd_io import load_stereo_sequence, load_tum_sequence
+    from flowtrack_course.demo.reproduce import reproduce_command
 
     kwargs = _SYNTH | {"out": str(tmp_path / "o u t")} | change
-    cmd = demo._reproduce_command(**kwargs)
+    cmd = reproduce_command(**kwargs)
     argv = shlex.split(cmd)
     assert argv[:2] == ["flowtrack", "demo"], cmd
     seen = {}
-    monkeypatch.setattr(demo, "run_demo", lambda **kw: seen.update(kw))
+    monkeypatch.setattr(demo_run, "run_demo", lambda **kw: seen.update(kw))
     assert main(argv[1:]) == 0
     keys = ["n_frames", "seed", "predict_ahead", "real_data", "gif", "input_dir"]
     if kwargs["input_dir"] is None:
@@ -350,14 +352,15 @@ def test_reproduce_command_without_cli_options_is_a_python_call(change, monkeypa
     import inspect
     import shlex
 
-    import flowtrack.demo as demo
+    import flowtrack_course.demo.run as demo_run
+    from flowtrack_course.demo.reproduce import reproduce_command
 
     kwargs = _SYNTH | {"out": "out"} | change
-    argv = shlex.split(demo._reproduce_command(**kwargs))
+    argv = shlex.split(reproduce_command(**kwargs))
     assert argv[:2] == ["python", "-c"]
     seen = {}
-    signature = inspect.signature(demo.run_demo)
-    monkeypatch.setattr(demo, "run_demo", lambda **kw: seen.update(kw))
+    signature = inspect.signature(demo_run.run_demo)
+    monkeypatch.setattr(demo_run, "run_demo", lambda **kw: seen.update(kw))
     exec(argv[2], {})
     bound = signature.bind(**seen)
     bound.apply_defaults()
@@ -415,7 +418,7 @@ def test_two_runs_with_the_same_seed_are_identical(demo_out, summary, tmp_path):
     """Bit for bit: tracks, predictions and every metric (open3d runs on one thread, see run_demo)."""
     import open3d as o3d
 
-    from flowtrack.demo import run_demo
+    from flowtrack_course.demo import run_demo
 
     before = o3d.utility.get_max_threads()
     during = []
@@ -431,7 +434,7 @@ def test_two_runs_with_the_same_seed_are_identical(demo_out, summary, tmp_path):
 def test_support_planes_is_repeatable():
     """open3d's RANSAC, seeded but multi-threaded, picked different planes from run to run."""
     from flowtrack.camera import backproject
-    from flowtrack.demo import support_planes
+    from flowtrack.pipeline import support_planes
 
     scene = make_scene(n_objects=3, n_frames=6, image_size=(120, 160), seed=0)
     for f in scene.frames:
@@ -445,7 +448,7 @@ def test_open3d_threads_without_set_max_threads_limits_openmp(monkeypatch):
     import open3d as o3d
     from threadpoolctl import threadpool_info
 
-    from flowtrack.demo import _open3d_threads
+    from flowtrack.pipeline import open3d_threads
 
     def openmp_threads():
         return {p["num_threads"] for p in threadpool_info() if p["user_api"] == "openmp"}
@@ -454,9 +457,9 @@ def test_open3d_threads_without_set_max_threads_limits_openmp(monkeypatch):
         pytest.skip("no OpenMP runtime loaded in this process")
     before = openmp_threads()
     monkeypatch.delattr(o3d.utility, "set_max_threads", raising=False)
-    with _open3d_threads(1):
+    with open3d_threads(1):
         assert openmp_threads() == {1}
     assert openmp_threads() == before
     with pytest.raises(ValueError, match="n"):
-        with _open3d_threads(0):
+        with open3d_threads(0):
             pass

@@ -23,9 +23,9 @@ import nbformat
 import numpy as np
 import pytest
 
-from flowtrack.grading.exercises import EXERCISES, get_exercise, plain_data, run_in_process
-from flowtrack.grading.exercises.ex09_track_management import expected_frames
-from flowtrack.grading.spec import Call, Exercise, GradedTest, Outcome, student_seed
+from flowtrack_course.grading.exercises import EXERCISES, get_exercise, plain_data, run_in_process
+from flowtrack_course.grading.exercises.ex09_track_management import expected_frames
+from flowtrack_course.grading.spec import Call, Exercise, GradedTest, Outcome, student_seed
 from grading_helpers import RecordingSandbox
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -443,7 +443,7 @@ def test_notebook_is_valid_nbgrader_source(ex):
     text = "\n".join(c.source for c in nb.cells if c.cell_type == "markdown")
     assert "You may import" in text and "Not:" in text
     for mod in ex.blocked:
-        if mod.startswith("flowtrack.") and mod != "flowtrack.grading":
+        if mod.startswith("flowtrack.") and mod != "flowtrack_course.grading":
             assert f"`{mod}`" in text, f"{mod} is blocked but the notebook does not say so"
 
 
@@ -617,7 +617,7 @@ def _echo_notebook(ex, tmp_path) -> Path:
 
 def _grader_inputs(ex, tmp_path, student, public_only=False) -> list[tuple[str, list]]:
     """What `flowtrack grade` (``student``) or `flowtrack check` (None, public only) sends, in order."""
-    from flowtrack.grading.grade import run_exercise
+    from flowtrack_course.grading.grade import run_exercise
 
     nb = _echo_notebook(ex, tmp_path)
     RecordingSandbox.sent = []
@@ -641,7 +641,7 @@ def _in_process_inputs(ex, student=None, **kwargs) -> list[tuple[str, list]]:
 
 
 def test_in_process_public_inputs_are_those_of_grade_and_check(tmp_path):
-    from flowtrack.grading.grade import public_seed
+    from flowtrack_course.grading.grade import public_seed
 
     ex = _drawing_exercise()
     public = ex.tests[0]
@@ -672,7 +672,7 @@ def test_in_process_public_inputs_are_those_of_grade_and_check(tmp_path):
     [(math.nan, 0.0), (math.inf, 0.0), (-math.inf, 0.0), (-0.5, 0.0), (0.25, 0.25), (1.5, 1.0)],
 )
 def test_in_process_clips_a_scorer_fraction_as_grade_does(tmp_path, fraction, share):
-    from flowtrack.grading.grade import run_exercise
+    from flowtrack_course.grading.grade import run_exercise
 
     ex = _drawing_exercise(fraction)
     results = run_in_process(ex, {"echo": lambda x: x}, student="alice")
@@ -727,8 +727,8 @@ def test_ex12_expected_values_match_the_sympy_data_term():
     """The rows and normal equations ex12 grades against equal sympy's derivation from the projection."""
     import sympy as sp
 
-    from flowtrack.grading.exercises import ex12_rgbd_data_term as ex12
     from flowtrack.symbolic.rgbd import pixel_data_term
+    from flowtrack_course.grading.exercises import ex12_rgbd_data_term as ex12
 
     d = pixel_data_term()
     X, Y, Z, fx, fy, Ix, Iy, Dx, Dy, cI, cD = d["symbols"]
@@ -751,7 +751,7 @@ def test_ex12_expected_values_match_the_sympy_data_term():
 
 def test_ex08_expected_optimum_matches_brute_force():
     """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
-    from flowtrack.grading.exercises.ex08_hungarian import assignment_check
+    from flowtrack_course.grading.exercises.ex08_hungarian import assignment_check
 
     rng = np.random.default_rng(8)
     for _ in range(30):
@@ -779,7 +779,7 @@ def test_ex08_expected_optimum_matches_brute_force():
 # the same, through the grader's sandbox
 # --------------------------------------------------------------------------------------------------
 def _sandbox_score(ex, sources: dict[str, str], student: str = "sandbox-student") -> tuple[float, dict]:
-    from flowtrack.grading.sandbox import Sandbox
+    from flowtrack_course.grading.sandbox import Sandbox
 
     cells = [(gid, sources[gid]) for gid in ex.answer_cells]
     total = 0.0
@@ -794,21 +794,21 @@ def _sandbox_score(ex, sources: dict[str, str], student: str = "sandbox-student"
 
 def _sandbox_available() -> bool:
     try:
-        import flowtrack.grading.sandbox  # noqa: F401
+        import flowtrack_course.grading.sandbox  # noqa: F401
     except ImportError:
         return False
     return True
 
 
 needs_sandbox = pytest.mark.skipif(
-    not _sandbox_available(), reason="flowtrack.grading.sandbox not importable"
+    not _sandbox_available(), reason="flowtrack_course.grading.sandbox not importable"
 )
 
 
 @needs_sandbox
 @pytest.mark.parametrize("ex", EXERCISES, ids=IDS)
 def test_sandbox_scores_solution_stub_wrong_and_cheat(ex):
-    from flowtrack.grading.notebook import extract_cells
+    from flowtrack_course.grading.notebook import extract_cells
 
     solution = dict(extract_cells(EXDIR / ex.notebook, ex.answer_cells))
     score, errors = _sandbox_score(ex, solution)

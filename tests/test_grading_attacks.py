@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
-from flowtrack.grading.spec import Call, Outcome, compare_arrays
+from flowtrack_course.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack_course.grading.spec import Call, Outcome, compare_arrays
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -168,7 +168,7 @@ def _snapshot(root: Path) -> dict:
 def test_reading_hidden_tests_solutions_and_gradebook(mode, course):
     targets = [str(p) for p in sorted(course.rglob("*")) if p.is_file()]
     targets += [str(REPO / d) for d in ("exercises", "solutions", "reference_impl/flowtrack/camera.py",
-                                        "reference_impl/flowtrack/grading/exercises.py", "README.md")]
+                                        "reference_impl/flowtrack_course/grading/exercises.py", "README.md")]
     cell = f"""
 import os
 TARGETS = {targets!r}
@@ -297,7 +297,7 @@ def add(a, b):
         except (ImportError, OSError, AttributeError):
             pass
     try:
-        import flowtrack.grading.exercises
+        import flowtrack_course.grading.exercises
         return "grader imported"
     except ImportError:
         pass
@@ -409,7 +409,7 @@ def add(a, b):
         x = np.arange(3.0)
         assert compare_arrays(sb.run([Call("mul", (x, 2.0))], timeout=10)[0], 2 * x)[0]
     if uid is not None:  # grading as root: a per-sandbox uid, so we can look for survivors
-        from flowtrack.grading.isolation import uid_has_processes
+        from flowtrack_course.grading.isolation import uid_has_processes
 
         assert not uid_has_processes(uid)
 
@@ -457,7 +457,7 @@ def test_cleanup_does_not_chmod_through_planted_symlinks():
     import shutil
     import tempfile
 
-    from flowtrack.grading.isolation import remove_tree
+    from flowtrack_course.grading.isolation import remove_tree
 
     tmp_path = Path(tempfile.mkdtemp(prefix="ft-rmtree-"))  # traversable by the uid used below
     try:
@@ -516,12 +516,12 @@ def test_compare_non_finite_and_huge_values(value, ok):
 def test_writing_into_the_sandbox_caches_or_the_runtime(mode):
     # The filtered flowtrack copy, the runner, the Python runtime (or its mirror) and numpy are
     # shared by every later student: none of them may be changed from inside.
-    from flowtrack.grading import runtime
+    from flowtrack_course.grading import runtime
 
     # The copy and the runner this sandbox mounts (built here if a source edit made new ones);
     # the shared cache folders themselves gain copies for other blocked sets from parallel runs.
     grade("def add(a, b):\n    return np.asarray(a) + b\n")
-    mounted = (runtime.filtered_flowtrack(("flowtrack.grading",)), runtime.runner_dir())
+    mounted = (runtime.filtered_flowtrack(("flowtrack_course.grading",)), runtime.runner_dir())
     before = [_snapshot(d) for d in mounted]
     cell = """
 import os, sys, flowtrack, numpy

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from flowtrack.grading.exercises import EXERCISES, get_exercise
-from flowtrack.grading.grade import run_exercise
-from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
-from flowtrack.grading.spec import Call
+from flowtrack_course.grading.exercises import EXERCISES, get_exercise
+from flowtrack_course.grading.grade import run_exercise
+from flowtrack_course.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack_course.grading.spec import Call
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 

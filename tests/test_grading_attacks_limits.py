@@ -4,7 +4,7 @@ files, memfd and forked children's memory.
 Each attack must score as an honest wrong answer or 0, leave the run whole (a later call in a fresh
 child works) and leave nothing outside (the student's folder is gone after ``close``). The memory
 attacks need a cgroup (v2 delegated, or v1 writable as root); they are skipped where the sandbox
-falls back to resource limits alone (see :mod:`flowtrack.grading.cgroups`).
+falls back to resource limits alone (see :mod:`flowtrack_course.grading.cgroups`).
 """
 
 import json
@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtrack.grading.cgroups import cgroup_status
-from flowtrack.grading.isolation import remove_tree, tree_usage
-from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
-from flowtrack.grading.spec import Call
+from flowtrack_course.grading.cgroups import cgroup_status
+from flowtrack_course.grading.isolation import remove_tree, tree_usage
+from flowtrack_course.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack_course.grading.spec import Call
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -244,8 +244,8 @@ def test_a_disk_filler_does_not_reach_the_host_or_the_next_student(tmp_path, mon
     # sandbox's own tmpfs: the host's disks (output, cache) never see it.
     import shutil
 
-    from flowtrack.grading.exercises import get_exercise
-    from flowtrack.grading.grade import grade_class
+    from flowtrack_course.grading.exercises import get_exercise
+    from flowtrack_course.grading.grade import grade_class
 
     ok, why = bwrap_status()
     assert ok, why
@@ -271,7 +271,7 @@ for d in (".", "/tmp"):
                 if c.get("metadata", {}).get("nbgrader", {}).get("grade_id") == "cv_transition")
     cell["source"] = filler + "".join(cell["source"])
     (subs / "mallory" / ex.notebook).write_text(json.dumps(nb))
-    from flowtrack.grading import sandbox as sandbox_module
+    from flowtrack_course.grading import sandbox as sandbox_module
 
     on_host = []  # bytes each sandbox left in its folder of the host, measured just before removal
 

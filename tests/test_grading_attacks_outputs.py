@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from flowtrack.grading.exercises import get_exercise
-from flowtrack.grading.grade import (
+from flowtrack_course.grading.exercises import get_exercise
+from flowtrack_course.grading.grade import (
     RESERVED_NAMES,
     UnsafeSandbox,
     feedback_markdown,
@@ -22,9 +22,9 @@ from flowtrack.grading.grade import (
     results_json,
     run_exercise,
 )
-from flowtrack.grading.notebook import NotebookError, extract_cells
-from flowtrack.grading.sandbox import Limits, bwrap_status
-from flowtrack.grading.spec import Outcome
+from flowtrack_course.grading.notebook import NotebookError, extract_cells
+from flowtrack_course.grading.sandbox import Limits, bwrap_status
+from flowtrack_course.grading.spec import Outcome
 from grading_helpers import RecordingSandbox
 
 pytestmark = pytest.mark.xdist_group("sandbox")

@@ -25,12 +25,12 @@ import pytest
 nbformat = pytest.importorskip("nbformat")
 pytest.importorskip("nbgrader")
 
-from flowtrack.grading.check import check_notebook  # noqa: E402
-from flowtrack.grading.exercises import EXERCISES, get_exercise  # noqa: E402
-from flowtrack.grading.grade import grade_class, public_seed  # noqa: E402
-from flowtrack.grading.gradebook import grade_cells, notebook_name  # noqa: E402
-from flowtrack.grading.release import release, release_notebook  # noqa: E402
-from flowtrack.grading.spec import student_seed  # noqa: E402
+from flowtrack_course.grading.check import check_notebook  # noqa: E402
+from flowtrack_course.grading.exercises import EXERCISES, get_exercise  # noqa: E402
+from flowtrack_course.grading.grade import grade_class, public_seed  # noqa: E402
+from flowtrack_course.grading.gradebook import grade_cells, notebook_name  # noqa: E402
+from flowtrack_course.grading.release import release, release_notebook  # noqa: E402
+from flowtrack_course.grading.spec import student_seed  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("grading_commands")
 
@@ -318,7 +318,7 @@ def test_gradebook_exports_through_nbgrader(graded, tmp_path):
     from nbgrader.api import Gradebook
     from nbgrader.plugins import CsvExportPlugin
 
-    from flowtrack.grading.gradebook import _alembic_on_path
+    from flowtrack_course.grading.gradebook import _alembic_on_path
 
     root, _, _ = graded
     dest = tmp_path / "export.csv"
@@ -342,7 +342,7 @@ def test_gradebook_is_stamped_with_nbgraders_alembic_head():
     """The revision read from nbgrader's migration files is the one ``alembic heads`` reports."""
     import nbgrader.api
 
-    from flowtrack.grading.gradebook import _alembic_head
+    from flowtrack_course.grading.gradebook import _alembic_head
 
     exe = Path(sys.executable).parent / "alembic"
     if not exe.exists():
@@ -388,7 +388,7 @@ def test_regrade_is_idempotent_and_restart_keeps_finished_students(bundle, tmp_p
 
 
 def test_grade_command_line_on_all_exercises(bundle, tmp_path, capsys):
-    from flowtrack.cli import main
+    from flowtrack_course.cli import main
 
     ex = SUBSET[0]
     _write(_source_nb(ex), tmp_path / "subs" / "zoe" / "nested" / ex.notebook)  # found by file name
@@ -404,7 +404,7 @@ def test_grade_command_line_on_all_exercises(bundle, tmp_path, capsys):
 
 @pytest.mark.parametrize("command", ["release", "check", "grade", "gradescope"])
 def test_every_command_has_help(command, capsys):
-    from flowtrack.cli import main
+    from flowtrack_course.cli import main
 
     with pytest.raises(SystemExit) as exc:
         main([command, "--help"])
@@ -450,7 +450,7 @@ def test_an_attacking_student_cannot_forge_grades_or_stop_the_run(tmp_path):
 
 
 def test_grade_warns_when_the_sandbox_falls_back(tmp_path):
-    from flowtrack.grading.sandbox import Sandbox
+    from flowtrack_course.grading.sandbox import Sandbox
 
     class FallbackSandbox(Sandbox):
         def __init__(self, *args, **kwargs):
@@ -481,7 +481,7 @@ def test_grade_rejects_bad_arguments(tmp_path):
 
 
 def test_gradescope_zip_runs_the_same_grader(tmp_path):
-    from flowtrack.grading.gradescope import build_autograder
+    from flowtrack_course.grading.gradescope import build_autograder
 
     zpath = build_autograder(tmp_path / "autograder.zip")
     unpacked = tmp_path / "source"
@@ -514,7 +514,7 @@ def test_gradescope_zip_runs_the_same_grader(tmp_path):
         PYTHONPATH=str(unpacked / "flowtrack" / "reference_impl"),
     )
     probe = subprocess.run(
-        [sys.executable, "-c", "import flowtrack.grading.grade as g; print(g.__file__)"],
+        [sys.executable, "-c", "import flowtrack_course.grading.grade as g; print(g.__file__)"],
         env=env, capture_output=True, text=True, check=True,
     )
     assert Path(probe.stdout.strip()).is_relative_to(unpacked)
@@ -528,7 +528,7 @@ def test_gradescope_zip_runs_the_same_grader(tmp_path):
 def test_a_submitted_link_leading_outside_the_submission_is_not_read(tmp_path):
     # bob's "notebook" is a link to alice's (or to a file of the grading machine): never graded as
     # his; a link inside his own folder is fine.
-    from flowtrack.grading.grade import locate_notebook
+    from flowtrack_course.grading.grade import locate_notebook
 
     ex = get_exercise("ex02_optical_flow")
     alice, bob, carol = (tmp_path / n for n in ("alice", "bob", "carol"))
@@ -549,8 +549,8 @@ def test_a_submitted_link_leading_outside_the_submission_is_not_read(tmp_path):
 def test_hidden_inputs_cannot_leak_through_a_later_public_test(tmp_path):
     # The student's function remembers every input and raises them in its next call: a public test
     # run after a hidden one would show the hidden inputs in its message.
-    from flowtrack.grading.grade import run_exercise
-    from flowtrack.grading.spec import Call, Exercise, GradedTest
+    from flowtrack_course.grading.grade import run_exercise
+    from flowtrack_course.grading.spec import Call, Exercise, GradedTest
 
     def build(values):
         def b(rng):

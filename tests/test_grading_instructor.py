@@ -25,10 +25,10 @@ import pytest
 
 nbformat = pytest.importorskip("nbformat")
 
-from flowtrack.grading import classreport, layout, lms  # noqa: E402
-from flowtrack.grading.instructor import run_grade  # noqa: E402
-from flowtrack.grading.keys import InsecureKeyError, check_key_file  # noqa: E402
-from flowtrack.grading.spec import Call, Exercise, GradedTest, Outcome  # noqa: E402
+from flowtrack_course.grading import classreport, layout, lms  # noqa: E402
+from flowtrack_course.grading.instructor import run_grade  # noqa: E402
+from flowtrack_course.grading.keys import InsecureKeyError, check_key_file  # noqa: E402
+from flowtrack_course.grading.spec import Call, Exercise, GradedTest, Outcome  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("grading_instructor")
 
@@ -220,7 +220,7 @@ def test_moodle_folder_names_get_a_suggested_rename(tmp_path):
 
 
 def test_cli_grade_exits_nonzero_on_a_flat_layout(tmp_path, capsys):
-    from flowtrack.cli import main
+    from flowtrack_course.cli import main
 
     subs = tmp_path / "subs"
     subs.mkdir()
@@ -231,13 +231,13 @@ def test_cli_grade_exits_nonzero_on_a_flat_layout(tmp_path, capsys):
 
 
 def test_check_suggests_the_rename_of_an_lms_copy(tmp_path, capsys):
-    from flowtrack.grading import check as check_mod
+    from flowtrack_course.grading import check as check_mod
 
     calls = []
 
     def fake_run(exercise, path, student, *, public_only=False, **kw):
         calls.append((exercise.id, Path(path).name, public_only))
-        from flowtrack.grading.grade import ExerciseResult
+        from flowtrack_course.grading.grade import ExerciseResult
 
         return ExerciseResult(exercise.id, exercise.title, exercise.notebook)
 
@@ -364,7 +364,7 @@ def test_grade_with_roster_and_lms_fills_gradebook_and_writes_canvas_csv(tmp_pat
     pytest.importorskip("nbgrader")
     from nbgrader.api import Gradebook
 
-    from flowtrack.grading.gradebook import _alembic_on_path
+    from flowtrack_course.grading.gradebook import _alembic_on_path
 
     run, _ = _graded_class(tmp_path, roster=_roster(tmp_path), lms="canvas", lms_mode="exercises")
     assert run.status == 0 and (tmp_path / "out" / "canvas.csv").is_file()
@@ -381,7 +381,7 @@ def test_grade_with_roster_and_lms_fills_gradebook_and_writes_canvas_csv(tmp_pat
 
 
 def test_export_command_line(tmp_path, capsys):
-    from flowtrack.cli import main
+    from flowtrack_course.cli import main
 
     _graded_class(tmp_path)
     out = tmp_path / "canvas.csv"
@@ -423,7 +423,7 @@ def test_a_key_others_can_read_is_refused_with_the_fix(tmp_path):
 
 
 def test_gradescope_bundle_refuses_a_world_readable_key(tmp_path):
-    from flowtrack.grading.gradescope import build_autograder
+    from flowtrack_course.grading.gradescope import build_autograder
 
     key = tmp_path / "key"
     key.write_bytes(os.urandom(32))
@@ -434,7 +434,7 @@ def test_gradescope_bundle_refuses_a_world_readable_key(tmp_path):
 
 
 def test_cli_refuses_a_world_readable_key(tmp_path, capsys):
-    from flowtrack.cli import main
+    from flowtrack_course.cli import main
 
     key = tmp_path / "key"
     key.write_bytes(os.urandom(32))
@@ -541,7 +541,7 @@ def test_score_distribution_agrees_with_numpy():
 
 
 def _unpack(tmp_path: Path, **kw) -> Path:
-    from flowtrack.grading.gradescope import build_autograder
+    from flowtrack_course.grading.gradescope import build_autograder
 
     z = build_autograder(tmp_path / "ag.zip", **kw)
     dest = tmp_path / "source"
@@ -633,7 +633,7 @@ def test_missing_metadata_is_an_explicit_error(tmp_path):
     data = _run_autograder(src, ag, sys.executable)
     assert data["score"] == 0 and "submission_metadata.json" in data["output"]
     assert data["extra_data"]["flowtrack"]["error"]
-    from flowtrack.grading.gradescope import MetadataError, student_from_metadata
+    from flowtrack_course.grading.gradescope import MetadataError, student_from_metadata
 
     (tmp_path / "m.json").write_text(json.dumps({"users": []}))
     with pytest.raises(MetadataError, match="names no submitter"):
@@ -684,8 +684,8 @@ def _closure(names: list[str], extras: bool = False) -> set[str]:
 PROBE = r"""
 import json, sys, tempfile
 from pathlib import Path
-from flowtrack.grading.exercises import EXERCISES
-from flowtrack.grading.grade import grade_student
+from flowtrack_course.grading.exercises import EXERCISES
+from flowtrack_course.grading.grade import grade_student
 sub = Path(sys.argv[1])
 with tempfile.TemporaryDirectory() as tmp:
     s = grade_student("probe", sub, EXERCISES, tmp, force=True)

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtrack.grading.notebook import NotebookError, extract_cells
-from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
-from flowtrack.grading.spec import Call, compare_arrays
+from flowtrack_course.grading.notebook import NotebookError, extract_cells
+from flowtrack_course.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack_course.grading.spec import Call, compare_arrays
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -233,14 +233,15 @@ def try_import(name):
 """
     blocked = ["flowtrack.kalman", "scipy.optimize"]
     with Sandbox([("a", src)], blocked=blocked, limits=FAST) as sb:
-        names = ["flowtrack.kalman", "flowtrack.camera", "flowtrack.grading", "flowtrack.grading.sandbox",
+        names = ["flowtrack.kalman", "flowtrack.camera", "flowtrack_course.grading",
+                 "flowtrack_course.grading.sandbox",
                  "scipy.optimize", "scipy.linalg", "numpy"]
         outcomes = sb.run([Call("try_import", (n,)) for n in names], timeout=30)
         out = dict(zip(names, (o.value for o in outcomes)))
     assert out["flowtrack.kalman"] == "ImportError: flowtrack.kalman is not available in this exercise"
     assert out["flowtrack.camera"] == "ok"
-    assert out["flowtrack.grading"].startswith("ImportError")
-    assert out["flowtrack.grading.sandbox"].startswith("ImportError")
+    assert out["flowtrack_course.grading"].startswith("ImportError")
+    assert out["flowtrack_course.grading.sandbox"].startswith("ImportError")
     assert out["scipy.optimize"].startswith("ImportError") and "scipy.optimize" in out["scipy.optimize"]
     assert out["scipy.linalg"] == "ok" and out["numpy"] == "ok"
 
@@ -281,7 +282,7 @@ def test_root_with_a_private_tmpdir_still_grades(tmp_path, monkeypatch):
     # unprivileged uid must still reach its cache and its directory.
     import tempfile
 
-    from flowtrack.grading import cache
+    from flowtrack_course.grading import cache
 
     private = tmp_path / "private"
     private.mkdir(mode=0o700)
@@ -297,8 +298,8 @@ def test_root_with_a_private_tmpdir_still_grades(tmp_path, monkeypatch):
 def test_root_with_a_private_venv_still_grades(tmp_path, monkeypatch):
     # A fresh clone under /root (mode 700) with its .venv there: the unprivileged uid cannot read
     # those packages, so the sandbox gets a world-readable mirror of them (without flowtrack).
-    from flowtrack.grading import runtime
-    from flowtrack.grading import sandbox as sbmod
+    from flowtrack_course.grading import runtime
+    from flowtrack_course.grading import sandbox as sbmod
 
     real = runtime.site_dirs()
     private = tmp_path / "venv" / "site-packages"
@@ -330,7 +331,7 @@ def private_cache(monkeypatch):
     import shutil
     import tempfile
 
-    from flowtrack.grading import cache, runtime
+    from flowtrack_course.grading import cache, runtime
 
     makers = (runtime.filtered_flowtrack, runtime.runner_dir, runtime.python_runtime)
     for m in makers:
@@ -353,7 +354,7 @@ def _aged(path, days):
 
 
 def test_stale_cached_copies_are_pruned_when_a_new_one_is_made(private_cache, tmp_path):
-    from flowtrack.grading import cache
+    from flowtrack_course.grading import cache
 
     kind = private_cache / "ft"
     outside = tmp_path / "outside"

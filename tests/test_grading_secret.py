@@ -20,9 +20,9 @@ import pytest
 
 nbformat = pytest.importorskip("nbformat")
 
-from flowtrack.grading.exercises import get_exercise  # noqa: E402
-from flowtrack.grading.grade import grade_class, run_exercise  # noqa: E402
-from flowtrack.grading.spec import MIN_SECRET_BYTES, read_secret, secret_id, student_seed  # noqa: E402
+from flowtrack_course.grading.exercises import get_exercise  # noqa: E402
+from flowtrack_course.grading.grade import grade_class, run_exercise  # noqa: E402
+from flowtrack_course.grading.spec import MIN_SECRET_BYTES, read_secret, secret_id, student_seed  # noqa: E402
 from grading_helpers import RecordingSandbox  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -102,7 +102,7 @@ def test_a_rerun_with_another_key_regrades_and_the_same_key_keeps(tmp_path):
 
 def test_the_command_line_creates_and_uses_the_key(tmp_path, capsys):
     # real sandbox, one student with the solution notebook: full marks with a key, key file created
-    from flowtrack.cli import main
+    from flowtrack_course.cli import main
 
     subs, out, key = tmp_path / "subs", tmp_path / "out", tmp_path / "seed.key"
     (subs / "ana").mkdir(parents=True)
@@ -120,7 +120,7 @@ def test_the_command_line_creates_and_uses_the_key(tmp_path, capsys):
 
 
 def test_the_gradescope_zip_carries_the_key_to_the_grader(tmp_path):
-    from flowtrack.grading.gradescope import build_autograder
+    from flowtrack_course.grading.gradescope import build_autograder
 
     key = tmp_path / "seed.key"
     zpath = build_autograder(tmp_path / "autograder.zip", secret_file=key)
@@ -135,7 +135,7 @@ def test_the_gradescope_zip_carries_the_key_to_the_grader(tmp_path):
 
 
 def test_the_gradescope_command_creates_the_key_once(tmp_path, capsys):
-    from flowtrack.cli import main
+    from flowtrack_course.cli import main
 
     key, zpath = tmp_path / "seed.key", tmp_path / "ag.zip"
     assert main(["gradescope", "--out", str(zpath), "--secret-file", str(key)]) == 0

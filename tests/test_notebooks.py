@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from flowtrack.notebooks import is_jupytext_notebook
+from flowtrack_course.notebooks import is_jupytext_notebook
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOK_DIRS = ("lessons", "solutions")
@@ -60,7 +60,7 @@ def test_notebook_executes(path, tmp_path):
     pytest.importorskip("jupytext")
     pytest.importorskip("nbclient")
     pytest.importorskip("ipykernel")
-    from flowtrack.notebooks import execute_notebook
+    from flowtrack_course.notebooks import execute_notebook
 
     nb = execute_notebook(path, timeout=300, cwd=tmp_path)
     assert any(c.cell_type == "code" for c in nb.cells)
@@ -145,7 +145,7 @@ def test_execute_notebook_reports_the_failing_cell(tmp_path):
     pytest.importorskip("jupytext")
     pytest.importorskip("nbclient")
     pytest.importorskip("ipykernel")
-    from flowtrack.notebooks import NotebookExecutionError, execute_notebook
+    from flowtrack_course.notebooks import NotebookExecutionError, execute_notebook
 
     src = tmp_path / "broken.md"
     src.write_text(

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from flowtrack.clustering import drop_small_clusters
-from flowtrack.demo import DemoConfig, cluster_purity, estimate_clouds
+from flowtrack.pipeline import PipelineConfig, scene_flow_and_clusters
 from flowtrack.sceneflow import (
     graph_scene_flow,
     iterative_graph_scene_flow,
@@ -12,6 +12,7 @@ from flowtrack.sceneflow import (
     scene_flow_metrics,
 )
 from flowtrack.synth import make_scene
+from flowtrack_course.demo.run import cluster_purity
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +96,7 @@ def test_cluster_purity_by_hand():
 
 def test_estimate_clouds_beats_nearest_neighbour_on_moving_points(pair):
     X, Y, gt, labels, dt = pair
-    flows, clusters, seconds = estimate_clouds(X, Y, dt, DemoConfig())
+    flows, clusters, seconds = scene_flow_and_clusters(X, Y, dt, PipelineConfig())
     assert all(t >= 0 for t in seconds.values())
     moving = np.linalg.norm(gt, axis=1) > 0
     nn = scene_flow_metrics(flows["nearest-neighbour"], gt, moving, dt=dt)["epe3d"]
@@ -103,3 +104,62 @@ def test_estimate_clouds_beats_nearest_neighbour_on_moving_points(pair):
     assert rigid < 0.5 * nn, (rigid, nn)
     assert clusters.shape == labels.shape
     assert set(flows) == {"nearest-neighbour", "graph", "graph + re-matching", "rigid per cluster"}
+
+
+# --------------------------------------------------------------------------------------------------
+# flowtrack.pipeline: clouds from frames, and the tracker's N-ahead prediction
+def test_cloud_from_depth_is_the_pinhole_back_projection_of_the_valid_pixels():
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import cloud_from_depth
+
+    rng = np.random.default_rng(3)
+    cam = PinholeCamera(210.0, 190.0, 15.3, 9.7, width=32, height=20)
+    Z = rng.uniform(0.3, 3.0, (20, 32))
+    Z[rng.random(Z.shape) < 0.2] = 0.0
+    Z[0, 1], Z[2, 3], Z[4, 5] = np.nan, np.inf, -1.0
+    Kinv = np.linalg.inv(cam.K)
+    # oracle: K^-1 (u, v, 1)^T Z pixel by pixel, row-major, for 0 < Z <= max_depth
+    for max_depth in (None, 2.0):
+        want = [Z[v, u] * (Kinv @ [u, v, 1.0]) for v in range(20) for u in range(32)
+                if np.isfinite(Z[v, u]) and Z[v, u] > 0 and (max_depth is None or Z[v, u] <= max_depth)]
+        got = cloud_from_depth(Z, cam, max_depth=max_depth)
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+
+
+def test_cloud_from_depth_voxel_grid_thins_to_one_point_per_voxel():
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import cloud_from_depth
+
+    cam = PinholeCamera(100.0, 100.0, 20.0, 20.0, width=40, height=40)
+    P = cloud_from_depth(np.full((40, 40), 1.0), cam, voxel=0.05)
+    full = cloud_from_depth(np.full((40, 40), 1.0), cam)
+    # a plane of 0.4 m x 0.4 m at 1 m: 1 cm between pixels, 5 cm voxels -> at most 9 x 9 (+ edges)
+    assert 64 <= len(P) <= 100 < len(full)
+    assert np.allclose(P[:, 2], 1.0)
+    with pytest.raises(ValueError, match="depth"):
+        cloud_from_depth(np.ones(5), cam)
+
+
+def test_predict_ahead_is_F_to_the_n_on_every_live_track_and_leaves_the_tracker_alone():
+    from flowtrack.kalman import constant_velocity_model
+    from flowtrack.tracking import MultiObjectTracker
+
+    dt, q = 0.1, 0.3
+    trk = MultiObjectTracker(dt=dt, q=q, r=1e-4, dim=3, min_hits=2)
+    for t in range(4):
+        trk.step(np.array([[0.01 * t, 0.0, 1.0], [0.5, -0.02 * t, 1.2]]), velocities=np.full((2, 3), 0.1))
+    trk.step(np.array([[0.9, 0.9, 0.9]]))  # a new, tentative track and one miss
+    F, _, Q, _ = constant_velocity_model(dt, q, 1e-4, 3)
+    before = [(t.id, t.x.copy(), t.P.copy()) for t in trk.tracks]
+    ahead = trk.predict_ahead(3)
+    assert sorted(ahead) == sorted(t.id for t in trk.tracks) and len(ahead) == 3
+    for tid, x, P in before:
+        xp, Pp = x, P
+        for _ in range(3):  # brute force: three predictions by hand
+            xp, Pp = F @ xp, F @ Pp @ F.T + Q
+        np.testing.assert_allclose(ahead[tid][0], xp, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(ahead[tid][1], Pp, rtol=1e-10, atol=1e-14)
+    for (tid, x, P), t in zip(before, trk.tracks):  # the tracker did not move
+        assert t.id == tid and np.array_equal(t.x, x) and np.array_equal(t.P, P)
+    with pytest.raises(ValueError, match="n"):
+        trk.predict_ahead(0)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import pytest
 
-from flowtrack.ports import lang_cpp
-from flowtrack.ports.base import VECTORS_DIR
+from flowtrack_course.ports import lang_cpp
+from flowtrack_course.ports.base import VECTORS_DIR
 from ports_helpers import (
     BUILD_DIR,
     assert_every_case_passes,

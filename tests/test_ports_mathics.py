@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
 
-from flowtrack.ports import lang_mathics
-from flowtrack.ports.base import VECTORS_DIR
-from flowtrack.ports.vectors_extra import scalar_riccati_P, steady_state_scalar
+from flowtrack_course.ports import lang_mathics
+from flowtrack_course.ports.base import VECTORS_DIR
+from flowtrack_course.ports.vectors_extra import scalar_riccati_P, steady_state_scalar
 from ports_helpers import (
     BUILD_DIR,
     assert_every_case_passes,

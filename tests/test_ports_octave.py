@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import pytest
 
-from flowtrack.ports import lang_octave
-from flowtrack.ports.base import VECTORS_DIR, ToolchainMissing
+from flowtrack_course.ports import lang_octave
+from flowtrack_course.ports.base import VECTORS_DIR, ToolchainMissing
 from ports_helpers import (
     BUILD_DIR,
     assert_every_case_passes,

@@ -18,10 +18,10 @@ from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter as FilterpyKF
 from scipy.optimize import linear_sum_assignment
 
-from flowtrack.cli import main
-from flowtrack.ports import runner
-from flowtrack.ports.base import VECTORS_DIR, CaseResult, ToolchainMissing
-from flowtrack.ports.vectors import dumps, problem_names, write_vectors
+from flowtrack_course.cli import main
+from flowtrack_course.ports import runner
+from flowtrack_course.ports.base import VECTORS_DIR, CaseResult, ToolchainMissing
+from flowtrack_course.ports.vectors import dumps, problem_names, write_vectors
 from oracles import central_difference_jacobian
 from ports_helpers import perturbed_vectors
 

@@ -112,10 +112,48 @@ def test_jupytext_sources_round_trip_to_notebooks_without_outputs(tmp_path):
 
 
 def test_cli_help_on_every_subcommand():
-    from flowtrack.cli import build_parser
+    from flowtrack_course.cli import build_parser
 
     parser = build_parser()
     sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
     assert sub.choices, "no sub-commands"
     for name, p in sub.choices.items():
         assert p.format_help().startswith("usage: flowtrack " + name)
+
+
+def _readme_module_table() -> set[str]:
+    """The modules named in the README's module tables (``flowtrack.kalman``, ``bayes`` ->
+    flowtrack.bayes)."""
+    names = set()
+    for line in (ROOT / "README.md").read_text(encoding="utf-8").splitlines():
+        cells = line.split("|")
+        if len(cells) < 3 or not re.match(r"`flowtrack(_course)?\.\w+`", cells[1].strip()):
+            continue
+        ticked = re.findall(r"`([\w.]+)`", cells[1])
+        package = ticked[0].rsplit(".", 1)[0]
+        names |= {t if "." in t else f"{package}.{t}" for t in ticked}
+    return names
+
+
+def test_readme_module_table_matches_the_code():
+    """Every public top-level module of both packages is in the README's tables, and every module
+    there exists (the variational solvers, for one, live in flowtrack.variational)."""
+
+    def public(package: str) -> set[str]:
+        base = ROOT / "reference_impl" / package
+        mods = {p.stem for p in base.glob("*.py")} | {p.parent.name for p in base.glob("*/__init__.py")}
+        return {f"{package}.{m}" for m in mods if not m.startswith("_")}
+
+    listed = _readme_module_table()
+    code = public("flowtrack") | public("flowtrack_course")
+    assert not code - listed, f"modules missing from the README's tables: {sorted(code - listed)}"
+    assert not listed - code, f"README names modules that do not exist: {sorted(listed - code)}"
+
+
+def test_readme_points_to_documents_that_exist():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "API document" not in text  # there is none: the API reference is generated (make book)
+    assert "out/book/api.html" in text
+    for target in re.findall(r"\]\(([^)#\s]+)\)", text):
+        if not re.match(r"[a-z]+:", target):
+            assert (ROOT / target).exists(), target

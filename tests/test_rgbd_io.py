@@ -7,7 +7,6 @@ import pytest
 from PIL import Image
 
 from flowtrack.camera import PinholeCamera
-from flowtrack.cli import main
 from flowtrack.rgbd_io import (
     associate,
     load_stereo_sequence,
@@ -18,6 +17,7 @@ from flowtrack.rgbd_io import (
     write_tum_sequence,
 )
 from flowtrack.synth import make_scene
+from flowtrack_course.cli import main
 
 SCALE = 5000.0
 

@@ -564,8 +564,8 @@ def test_turn_rate_model_predicts_an_arc_better_than_constant_velocity():
         for k in range(T):
             trk.step(frames[k], flows[k])
             if k >= 15:
-                x, _ = trk.predict_ahead(ahead)
-                e.append(np.linalg.norm(x[0, :2] - p[k + ahead]))
+                x, _ = trk.predict_ahead(ahead)[trk.tracks[0].id]
+                e.append(np.linalg.norm(x[:2] - p[k + ahead]))
         err[model] = np.mean(e)
         if model == "turn_rate":
             assert trk.tracks[0].yaw_rate == pytest.approx(1.0, abs=0.05)
@@ -578,15 +578,16 @@ def test_predict_ahead_of_the_default_tracker_is_F_to_the_n():
     for k in range(3):
         trk.step(np.array([[0.1 * k, 0.0], [1.0, 0.05 * k]]))
     F, _, Q, _ = constant_velocity_model(0.1, 0.5, 1e-3, 2)
-    x, P = trk.predict_ahead(4)
+    ahead = trk.predict_ahead(4)
     F4 = np.linalg.matrix_power(F, 4)
-    for i, tr in enumerate(trk.tracks):
-        np.testing.assert_allclose(x[i], F4 @ tr.x, atol=1e-12)
+    assert sorted(ahead) == [tr.id for tr in trk.tracks]
+    for tr in trk.tracks:
+        x, P = ahead[tr.id]
+        np.testing.assert_allclose(x, F4 @ tr.x, atol=1e-12)
         Pr = tr.P
         for _ in range(4):
             Pr = F @ Pr @ F.T + Q
-        np.testing.assert_allclose(P[i], Pr, atol=1e-12)
-    np.testing.assert_allclose(trk.predict_ahead(0)[0], np.array([t.x for t in trk.tracks]))
+        np.testing.assert_allclose(P, Pr, atol=1e-12)
 
 
 @pytest.mark.parametrize(

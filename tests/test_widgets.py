@@ -1,4 +1,4 @@
-"""flowtrack.widgets: sliders with a widget frontend, the static sweep figure without (headless)."""
+"""flowtrack_course.widgets: sliders with a widget frontend, the static sweep figure without (headless)."""
 
 import math
 import types
@@ -10,8 +10,8 @@ import pytest
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from flowtrack import widgets
-from flowtrack.widgets import Choice, Slider, interactive_or_static, widget_frontend_available
+from flowtrack_course import widgets
+from flowtrack_course.widgets import Choice, Slider, interactive_or_static, widget_frontend_available
 
 X = np.linspace(0.0, 1.0, 4)
 
@@ -181,7 +181,7 @@ def test_interactive_or_static_bad_input():
         interactive_or_static(42, a=s, show=False)
     with pytest.raises(TypeError, match="fn must accept"):
         interactive_or_static(lambda ax, a: None, b=s, show=False)
-    with pytest.raises(TypeError, match=r"a must be a flowtrack\.widgets\.Slider"):
+    with pytest.raises(TypeError, match=r"a must be a flowtrack_course\.widgets\.Slider"):
         interactive_or_static(line, a=(0.0, 1.0), show=False)
     with pytest.raises(ValueError, match="mode"):
         interactive_or_static(line, a=s, mode="browser", show=False)

@@ -9,6 +9,7 @@ The reference implementation of the flowtrack course. Modules:
 - :mod:`flowtrack.kalman`, :mod:`flowtrack.bayes`, :mod:`flowtrack.particle` – Bayes filtering;
   :mod:`flowtrack.batch_kalman` – the Kalman filter for many tracks at once (re-exported by ``kalman``).
 - :mod:`flowtrack.association`, :mod:`flowtrack.tracking` – data association, multi-object tracker.
+- :mod:`flowtrack.pipeline` – frames → clouds → scene flow → clusters → detections (the first flowchart).
 - :mod:`flowtrack.motion` – rigid motion from flow, the turn-rate track model (EKF).
 - :mod:`flowtrack.tracking_io` – ``tracks.csv``; :mod:`flowtrack.tracking_eval` – scoring a tracker run,
   the position-only vs flow-aided ablation.
@@ -20,7 +21,9 @@ The reference implementation of the flowtrack course. Modules:
 - :mod:`flowtrack.symbolic` – the sympy derivations, one module per lesson.
 - :mod:`flowtrack.rgbd_io` – RGB-D sequences from disk (TUM layout) and stereo pairs.
 
-Submodules are imported lazily so that ``import flowtrack`` stays cheap.
+Submodules are imported lazily so that ``import flowtrack`` stays cheap. The course's tooling
+(grading, port harnesses, book, widgets, demo app, ``flowtrack`` command) lives in the sibling
+package :mod:`flowtrack_course`, which builds on this one; this package never imports it.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ _SUBMODULES = {
     "particle",
     "association",
     "tracking",
+    "pipeline",
     "motion",
     "tracking_io",
     "tracking_eval",
@@ -49,7 +53,6 @@ _SUBMODULES = {
     "datasets",
     "rgbd_io",
     "symbolic",
-    "widgets",
 }
 
 __all__ = [*sorted(_SUBMODULES), "__version__"]

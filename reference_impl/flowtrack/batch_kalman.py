@@ -64,9 +64,8 @@ class BatchKalmanFilter:
     S : ndarray, shape (M, m, m) or None
         Innovation covariances ``H P⁻ Hᵀ + R`` at the last :meth:`update` (all tracks).
     log_likelihood : ndarray, shape (M,) or None
-        Per-track log-likelihood of the last update (0 for tracks not updated).
-
-    ``innovation``, ``S`` and ``log_likelihood`` are reset to ``None`` by :meth:`append`/:meth:`keep`.
+        Per-track log-likelihood of the last update (0 for tracks not updated). ``innovation``,
+        ``S`` and ``log_likelihood`` are reset to ``None`` by :meth:`append`/:meth:`keep`.
 
     Examples
     --------

@@ -257,7 +257,7 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
 def detection_velocity_covariances(points, clusters, flow, detections, dt, **options) -> np.ndarray:
     r"""Velocity covariance of each detection, from the flow residuals of its motion cluster.
 
-    Each detection (e.g. a centroid from :func:`flowtrack.demo.detect_objects`) belongs to the
+    Each detection (e.g. a centroid from :func:`flowtrack_course.demo.detect_objects`) belongs to the
     cluster of its nearest clustered point (label >= 0); that cluster's rigid motion is fitted to
     ``flow`` (:func:`rigid_motion_from_flow`) and its :attr:`RigidMotion.velocity_cov` is the
     detection's. Pass the *raw* estimated flow (e.g. graph flow with re-matching), not a flow already

@@ -597,21 +597,6 @@ class MultiObjectTracker:
                                 for k, (t, c) in enumerate(zip(ids.tolist(), codes.tolist()))]))
         return out
 
-    def predict_ahead(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """The live tracks' prior ``steps`` frames ahead, without updates: ``(x (M, n), P (M, n, n))``.
-
-        Rows follow :attr:`tracks`. The filter itself is not changed.
-        """
-        steps = positive_int(steps, "steps", minimum=0)
-        if self._flow is not None:
-            return self.kf.predicted(steps)
-        import copy
-
-        kf = copy.deepcopy(self.kf)
-        for _ in range(steps):
-            kf.predict()
-        return kf.x.copy(), kf.P.copy()
-
     @property
     def tracks(self) -> list[Track]:
         """All live tracks after the last :meth:`step`, tentative ones included, in order of id."""
@@ -645,6 +630,49 @@ class MultiObjectTracker:
         if not include_tentative:
             out = {tid: h for tid, h in out.items() if tid in ever_confirmed}
         return out
+
+    def predict_ahead(self, n: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        r"""Every live track predicted ``n`` frames past the last :meth:`step`, without updates.
+
+        The tracker's own motion model applied ``n`` times, :math:`x \leftarrow F x`,
+        :math:`P \leftarrow F P F^\top + Q` (with the turn-rate model, its EKF prediction), on a copy
+        of its filter (the tracker is not changed).
+
+        Parameters
+        ----------
+        n : int, >= 1
+            Frames ahead.
+
+        Returns
+        -------
+        dict
+            Track id -> ``(x (2*dim,), P (2*dim, 2*dim))``, the predicted state and covariance, for
+            every live track (tentative ones included, as :attr:`tracks`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> trk = MultiObjectTracker(dt=0.5, q=0.0, r=1e-4, dim=2, min_hits=1)
+        >>> _ = trk.step(np.array([[0.0, 0.0]]), velocities=np.array([[1.0, 2.0]]))
+        >>> x, P = trk.predict_ahead(4)[0]
+        >>> x.round(6).tolist()          # 4 frames of 0.5 s at (1, 2) m/s, q = 0
+        [2.0, 4.0, 1.0, 2.0]
+        """
+        n = positive_int(n, "n")
+        x, P = self._predicted_arrays(n)
+        return {tid: (x[i].copy(), P[i].copy()) for i, tid in enumerate(self._ids.tolist())}
+
+    def _predicted_arrays(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The live tracks' prior ``n`` frames ahead as stacked arrays ``(x (M, n_x), P (M, n_x, n_x))``,
+        rows in the order of :attr:`tracks`; the filter itself is not changed."""
+        if self._flow is not None:  # the flow-aware filter (turn-rate or constant velocity)
+            return self.kf.predicted(n)
+        import copy
+
+        kf = copy.deepcopy(self.kf)
+        for _ in range(n):
+            kf.predict()
+        return kf.x.copy(), kf.P.copy()
 
     def __repr__(self) -> str:
         counts = {s: sum(t.status == s for t in self._snapshot) for s in STATUSES}

@@ -72,11 +72,10 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
         C = None if velocity_covs is None else velocity_covs[t]
         reported = tracker.step(detections[t], V, C) if C is not None else tracker.step(detections[t], V)
         live = tracker.tracks
-        x_ahead, _ = tracker.predict_ahead(ahead)
-        row = {tr.id: i for i, tr in enumerate(live)}
+        ahead_of = tracker.predict_ahead(ahead)
         now = [tr for tr in reported if tr.misses == 0]
         hyp.append({tr.id: tr.position.copy() for tr in now})
-        pred.append({tr.id: x_ahead[row[tr.id], :d].copy() for tr in now})
+        pred.append({tr.id: ahead_of[tr.id][0][:d].copy() for tr in now})
         tracks.append(live)
     return {"hyp": hyp, "pred": pred, "tracks": tracks, "ahead": ahead}
 

@@ -1,0 +1,326 @@
+r"""The syllabus' first flowchart as library steps: frames → clouds → scene flow → clusters → detections.
+
+What the demo app (``flowtrack demo``) and lesson 6 share. Per frame pair :math:`(t, t+1)`:
+
+1. :func:`cloud_from_depth` back-projects a depth image, :math:`X = Z\,K^{-1}(u, v, 1)^\top`
+   (optionally thinned by open3d's voxel grid to an even density);
+2. :func:`scene_flow_and_clusters` estimates scene flow by four methods (:data:`METHODS`: nearest
+   neighbour, graph, graph with re-matching, rigid ICP per motion cluster) and the motion clusters
+   of the re-matched graph flow;
+3. :func:`detections_from_clusters` removes the support planes (:func:`support_planes`, open3d
+   RANSAC) and turns each remaining connected piece of a cluster into a detection: its centroid
+   :math:`\bar X` and mean rigid velocity :math:`\bar v` (the mean of a rigid motion's flow over a
+   piece is the flow of its centroid, exactly);
+4. :meth:`flowtrack.tracking.MultiObjectTracker.step` takes the detections (and velocities), and
+   :meth:`~flowtrack.tracking.MultiObjectTracker.predict_ahead` predicts every track N frames.
+
+Examples
+--------
+>>> import numpy as np
+>>> from flowtrack.camera import PinholeCamera
+>>> cam = PinholeCamera(fx=100.0, fy=100.0, cx=1.5, cy=1.0, width=4, height=3)
+>>> depth = np.full((3, 4), 2.0)
+>>> depth[0, 0] = 0.0                                   # no measurement
+>>> cloud_from_depth(depth, cam).shape
+(11, 3)
+>>> cloud_from_depth(depth, cam, max_depth=1.5).shape   # everything farther than 1.5 m dropped
+(0, 3)
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._graph import as_labels
+from ._validation import as_array, nonnegative, positive, positive_int
+from .camera import backproject
+from .clustering import cluster_motion, drop_small_clusters
+from .sceneflow import iterative_graph_scene_flow, nearest_neighbor_targets, rigid_flow_per_cluster
+
+__all__ = [
+    "METHODS",
+    "PipelineConfig",
+    "cloud_from_depth",
+    "detections_from_clusters",
+    "open3d_threads",
+    "scene_flow_and_clusters",
+    "subsample",
+    "support_planes",
+]
+
+#: The scene-flow methods of :func:`scene_flow_and_clusters`, in the order of the demo's tables.
+METHODS = ("nearest-neighbour", "graph", "graph + re-matching", "rigid per cluster")
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Tuning of the pipeline (metres, seconds)."""
+
+    lam: float = 1.0  #: graph smoothness weight
+    k: int = 8  #: neighbours of the kNN graph
+    rematch_iterations: int = 5  #: passes of graph flow with re-matched correspondences
+    cluster_radius: float = 0.03  #: spatial radius of the motion graph
+    sigma_v: float = 0.05  #: motion-similarity scale (m/s)
+    min_speed: float = 0.02  #: slower points are static background (m/s)
+    min_cluster_points: int = 50  #: smaller motion clusters are flow noise, sent to the background
+    icp_threshold: float = 0.02  #: ICP correspondence distance (m)
+    max_points: int = 30000  #: random subsample of each cloud, for speed
+    track_q: float = 0.1  #: acceleration variance of the tracker's constant-velocity model ((m/s²)²)
+    track_r: float = 1e-4  #: detection (cluster centroid) variance (m²): 1 cm standard deviation
+    min_hits: int = 2  #: detections that confirm a track
+    max_misses: int = 8  #: frames a confirmed track may coast through an occlusion
+    plane_threshold: float = 0.006  #: RANSAC inlier distance of the support planes (table, walls), m
+    max_planes: int = 2  #: support planes removed before detection (each >= plane_min_share of the cloud)
+    plane_min_share: float = 0.08
+    min_detection_points: int = 30  #: smaller pieces of a cluster off the planes are not detections
+    gate_prob: float = 0.99  #: tracker's chi-square gate probability
+    voxel: float = 0.01  #: voxel size for real clouds (open3d), 0 = off
+    max_depth: float = 4.0  #: real input: farther points are dropped (m)
+
+
+def subsample(n: int, max_points: int, rng: np.random.Generator) -> np.ndarray:
+    """Sorted indices of a random subset of ``max_points`` of ``range(n)`` (all of them if fewer).
+
+    Examples
+    --------
+    >>> subsample(5, 10, np.random.default_rng(0))
+    array([0, 1, 2, 3, 4])
+    >>> idx = subsample(100, 10, np.random.default_rng(0))
+    >>> len(idx), bool(np.all(np.diff(idx) > 0))
+    (10, True)
+    """
+    if n <= max_points:
+        return np.arange(n)
+    return np.sort(rng.choice(n, size=max_points, replace=False))
+
+
+def cloud_from_depth(depth, camera, *, max_depth: float | None = None, voxel: float = 0.0) -> np.ndarray:
+    r"""The point cloud of a depth image: :math:`X = Z\,K^{-1}(u, v, 1)^\top` for every valid pixel.
+
+    Parameters
+    ----------
+    depth : array_like, shape (H, W)
+        Depth Z in metres; 0, negative or non-finite values mark pixels without a measurement.
+    camera : flowtrack.camera.PinholeCamera
+    max_depth : float, optional
+        Farther pixels are dropped too (m).
+    voxel : float
+        With ``voxel > 0`` the cloud is thinned by open3d's voxel grid of that size (m): one point
+        (the mean) per occupied voxel, an even density for real sensors. 0 keeps every pixel.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        Camera coordinates; without ``voxel`` the valid pixels in row-major order (the order of a
+        synthetic frame's ground truth, :attr:`flowtrack.synth.Frame.points`).
+    """
+    Z = np.asarray(depth, dtype=np.float64)
+    if Z.ndim != 2:
+        raise ValueError(f"depth must be an (H, W) image, got shape {Z.shape}")
+    voxel = nonnegative(voxel, "voxel")
+    valid = np.isfinite(Z) & (Z > 0)
+    if max_depth is not None:
+        valid &= Z <= positive(max_depth, "max_depth")
+    P = backproject(np.where(valid, Z, 0.0), camera)[valid]
+    if voxel > 0 and len(P):
+        import open3d as o3d
+
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P))
+        P = np.asarray(pc.voxel_down_sample(voxel).points)
+    return P
+
+
+def scene_flow_and_clusters(X, Y, dt: float, config: PipelineConfig | None = None):
+    """Every scene-flow method of :data:`METHODS` on one pair of clouds, and the motion clusters.
+
+    No index correspondence between the clouds is needed.
+
+    Parameters
+    ----------
+    X, Y : ndarray, shape (N, 3) and (M, 3)
+        The clouds at t and t + dt.
+    dt : float
+    config : PipelineConfig, optional
+
+    Returns
+    -------
+    flows : dict
+        Method → (N, 3) velocities of ``X``'s points.
+    clusters : ndarray, shape (N,) int
+        Motion-cluster labels of ``X`` (−1 static; clusters smaller than ``min_cluster_points``
+        sent to −1).
+    seconds : dict
+        The seconds each stage took.
+    """
+    cfg = config if config is not None else PipelineConfig()
+    flows = {}
+    t0 = time.perf_counter()
+    flows["nearest-neighbour"] = (nearest_neighbor_targets(X, Y) - X) / dt
+    t1 = time.perf_counter()
+    # the first re-matching pass is the plain graph flow on nearest-neighbour targets
+    flows["graph + re-matching"], passes = iterative_graph_scene_flow(
+        X, Y, dt, cfg.lam, k=cfg.k, iterations=cfg.rematch_iterations, return_passes=True
+    )
+    flows["graph"] = passes[0]
+    t3 = time.perf_counter()
+    labels = cluster_motion(
+        X, flows["graph + re-matching"], cfg.cluster_radius, cfg.sigma_v, min_speed=cfg.min_speed,
+        method="connected",
+    )
+    clusters = drop_small_clusters(labels, cfg.min_cluster_points)
+    t4 = time.perf_counter()
+    flows["rigid per cluster"] = rigid_flow_per_cluster(X, Y, clusters, dt, cfg.icp_threshold)
+    t5 = time.perf_counter()
+    seconds = {
+        "nearest-neighbour": t1 - t0,
+        "graph, all passes": t3 - t1,
+        "clustering": t4 - t3,
+        "rigid per cluster": t5 - t4,
+    }
+    return {m: flows[m] for m in METHODS}, clusters, seconds
+
+
+@contextmanager
+def open3d_threads(n: int) -> Iterator[None]:
+    """Limit open3d to ``n`` CPU threads inside a ``with`` block; the previous limit is restored after.
+
+    open3d runs its loops on several threads (oneTBB from 0.20 on, OpenMP before), and the result
+    of some depends on their timing: ``segment_plane`` (RANSAC) hands out the random samples of one
+    seeded generator in whatever order the threads ask for them, so the best plane and its inliers
+    change from run to run, and ``registration_icp`` adds up its residuals in a timing-dependent
+    order. With one thread both are repeatable bit for bit. The limit holds for the whole process:
+    ``open3d.utility.set_max_threads`` (open3d >= 0.20), else (0.19, OpenMP) threadpoolctl's limit of
+    the OpenMP runtimes, which also holds for the other libraries that use them. Also a decorator.
+
+    Parameters
+    ----------
+    n : int, >= 1
+
+    Examples
+    --------
+    >>> import open3d as o3d
+    >>> if hasattr(o3d.utility, "get_max_threads"):
+    ...     before = o3d.utility.get_max_threads()
+    ...     with open3d_threads(1):
+    ...         assert o3d.utility.get_max_threads() == 1
+    ...     assert o3d.utility.get_max_threads() == before
+    """
+    import open3d as o3d
+
+    n = positive_int(n, "n")
+    if not hasattr(o3d.utility, "set_max_threads"):  # open3d 0.19: OpenMP
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=n, user_api="openmp"):
+            yield
+        return
+    previous = o3d.utility.get_max_threads()
+    o3d.utility.set_max_threads(n)
+    try:
+        yield
+    finally:
+        o3d.utility.set_max_threads(0)  # no limit: the automatic default ...
+        if o3d.utility.get_max_threads() != previous:  # ... unless a limit had been set before
+            o3d.utility.set_max_threads(previous)
+
+
+def support_planes(points, config: PipelineConfig | None = None) -> np.ndarray:
+    """Mask of the points on the largest planes (table, walls): open3d RANSAC, up to ``max_planes``.
+
+    A plane counts when it holds at least ``plane_min_share`` of the points; inliers are within
+    ``plane_threshold`` of it (both from ``config``). Returns a bool array of shape (N,). The RANSAC
+    samples come from open3d's generator seeded with 0 and drawn by one thread
+    (:func:`open3d_threads`), so the same points always give the same mask.
+    """
+    import open3d as o3d
+
+    cfg = config if config is not None else PipelineConfig()
+    P = np.asarray(points, dtype=np.float64)
+    on = np.zeros(len(P), dtype=bool)
+    rest = np.arange(len(P))
+    with open3d_threads(1):
+        o3d.utility.random.seed(0)
+        for _ in range(cfg.max_planes):
+            if len(rest) < 3:
+                break
+            pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(P[rest]))
+            _, inl = pc.segment_plane(cfg.plane_threshold, 3, 200)
+            if len(inl) < cfg.plane_min_share * len(P):
+                break
+            inl = np.asarray(inl, dtype=np.intp)
+            on[rest[inl]] = True
+            rest = np.delete(rest, inl)
+    return on
+
+
+def detections_from_clusters(points, clusters, flow, config: PipelineConfig | None = None, next_points=None,
+                             dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    r"""Object detections from motion clusters: centroid and mean velocity of each object piece.
+
+    Graph smoothing spreads an object's motion into the table it stands on (the kNN graph links
+    them at the contact), and a translation parallel to a plane leaves that plane unchanged, so the
+    table next to an object cannot be told apart from it by geometry. The support planes are
+    therefore removed (:func:`support_planes`) and each cluster's remaining points are split into
+    spatially connected pieces (radius ``cluster_radius``); every piece with at least
+    ``min_detection_points`` points is a detection :math:`(\bar X, \bar v)`.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 3)
+    clusters : ndarray, shape (N,) int
+        Motion-cluster labels, −1 static.
+    flow : ndarray, shape (N, 3)
+        Velocities whose per-piece mean initialises a track (the rigid flow of each cluster: the
+        mean of a rigid motion's flow is the flow of the centroid).
+    config : PipelineConfig, optional
+    next_points : ndarray, shape (M, 3), optional
+        The cloud of frame t+1; with it (and ``dt``) a piece must be better explained as moving
+        than as static: the median distance from :math:`X_i + v_i\,\Delta t` to the nearest point
+        of the next cloud must be smaller than that from :math:`X_i` itself. Static surface that a
+        cluster reached through noisy points (and whose rigid flow is therefore the cluster's, not
+        its own) fails this test and is skipped.
+    dt : float, optional
+
+    Returns
+    -------
+    centroids, velocities : ndarray, shape (K, 3)
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    cfg = config if config is not None else PipelineConfig()
+    P = as_array(points, "points", ("N", 3))
+    clusters = as_labels(clusters, "clusters", len(P), min_label=-1)
+    flow = as_array(flow, "flow", (len(P), 3))
+    tree = None
+    if next_points is not None:
+        if dt is None:
+            raise ValueError("dt must be given with next_points")
+        dt = positive(dt, "dt")
+        tree = cKDTree(as_array(next_points, "next_points", ("M", 3)))
+    keep = (clusters >= 0) & ~support_planes(P, cfg)
+    Z, V = [], []
+    for c in np.unique(clusters[keep]):
+        idx = np.flatnonzero(keep & (clusters == c))
+        if len(idx) < cfg.min_detection_points:
+            continue
+        pairs = cKDTree(P[idx]).query_pairs(cfg.cluster_radius, output_type="ndarray")
+        A = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(idx), len(idx)))
+        _, comp = connected_components(A, directed=False)
+        for j in np.unique(comp):
+            piece = idx[comp == j]
+            if len(piece) >= cfg.min_detection_points:
+                if tree is not None:
+                    d_static = np.median(tree.query(P[piece])[0])
+                    d_moving = np.median(tree.query(P[piece] + dt * flow[piece])[0])
+                    if d_static <= d_moving:
+                        continue
+                Z.append(P[piece].mean(axis=0))
+                V.append(flow[piece].mean(axis=0))
+    return np.array(Z).reshape(-1, 3), np.array(V).reshape(-1, 3)

@@ -1,0 +1,81 @@
+"""The demo's input: the synthetic scene (with ground truth) or a real RGB-D / stereo sequence."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flowtrack.pipeline import PipelineConfig, cloud_from_depth, subsample
+from flowtrack.synth import make_scene
+
+__all__ = ["MIN_LAYOUT_FRAMES", "DemoInput", "frame_cloud", "load_input", "surface_centroids"]
+
+#: the synthetic motions are laid out over at least this many frames, so that a short run (a test)
+#: sees the same speeds as the full one
+MIN_LAYOUT_FRAMES = 24
+
+
+@dataclass
+class DemoInput:
+    """The frames the demo runs on: camera, frame interval, images and (synthetic) the scene."""
+
+    name: str
+    camera: object
+    dt: float
+    rgb: list
+    depth: list
+    n: int  # frames the pipeline sees
+    scene: object = None  # the synthetic Scene (ground truth), None for real input
+
+
+def frame_cloud(inp: DemoInput, t: int, cfg: PipelineConfig, rng: np.random.Generator):
+    """Back-projected, subsampled cloud of frame ``t`` and (synthetic) its ground truth."""
+    depth = inp.depth[t]
+    if inp.scene is not None:
+        P = cloud_from_depth(depth, inp.camera)  # row-major valid pixels: the order of frame.points
+        idx = subsample(len(P), cfg.max_points, rng)
+        f = inp.scene.frames[t]
+        return P[idx], f.gt_flow[idx], f.labels[idx]
+    P = cloud_from_depth(depth, inp.camera, max_depth=cfg.max_depth, voxel=cfg.voxel)
+    P = P[subsample(len(P), cfg.max_points, rng)]
+    if len(P) < 2 * cfg.k:
+        raise ValueError(f"frame {t} of {inp.name} has only {len(P)} valid depth points (within "
+                         f"max_depth={cfg.max_depth} m); check depth_scale and the depth images")
+    return P, None, None
+
+
+def surface_centroids(frame, min_pixels: int) -> dict[int, np.ndarray]:
+    """Ground truth of a detection: the centroid of each object's visible (noiseless) surface."""
+    X = frame.gt_points
+    out = {}
+    for k in sorted(frame.gt_poses):
+        m = frame.labels == k
+        if m.sum() >= min_pixels:
+            out[k] = X[m].mean(axis=0)
+    return out
+
+
+def load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict_ahead, scenario,
+               input_options) -> DemoInput:
+    """The synthetic scene (``input_dir`` None; rendered ``predict_ahead`` frames past the last one
+    processed, for scoring the prediction) or the sequence in ``input_dir``."""
+    if input_dir is None:
+        # make_scene checks scenario and n_objects (and names them)
+        total = max(n_frames + predict_ahead, MIN_LAYOUT_FRAMES if scenario == "mixed" else 0)
+        try:
+            scene = make_scene(n_objects=n_objects, n_frames=total, image_size=image_size, dt=0.1,
+                               noise=noise, seed=seed, scenario=scenario)
+        except RuntimeError as exc:  # no collision-free layout: too many objects for the table
+            raise ValueError(f"n_objects={n_objects} does not fit on the table: {exc}") from exc
+        return DemoInput(f"synthetic scene ({scenario})", scene.camera, scene.dt,
+                         [f.rgb for f in scene.frames], [f.depth for f in scene.frames], n_frames, scene)
+    from flowtrack.rgbd_io import load_rgbd
+
+    opts = dict(input_options or {})
+    stereo = bool(opts.pop("stereo", False))
+    seq = load_rgbd(input_dir, stereo=stereo, max_frames=n_frames, **opts)
+    if len(seq) < 2:
+        raise ValueError(f"input {input_dir} has {len(seq)} usable frame(s); scene flow needs at least 2")
+    return DemoInput(f"{'stereo' if stereo else 'RGB-D'} sequence {input_dir}", seq.camera, seq.dt, seq.rgb,
+                     seq.depth, len(seq), None)

@@ -1,0 +1,149 @@
+"""Shared scoring helpers of the exercises' trusted tests.
+
+A test module writes ``build(rng)`` as a function returning ``(function, args, kwargs, check)``
+entries and decorates it with :func:`graded_test`; each ``check(outcome) -> (fraction, message)``
+scores one call, and :func:`per_call` averages them into the test's scorer (partial credit: the
+fraction of calls, or checks, that pass).
+
+Examples
+--------
+>>> import numpy as np
+>>> from flowtrack_course.grading.spec import Outcome
+>>> check = array_check(np.array([1.0, 2.0]))
+>>> check(Outcome(True, [1.0, 2.0])), check(Outcome(True, [1.0]))[0]
+((1.0, 'ok'), 0.0)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..spec import Call, GradedTest, Outcome, Scorer, compare_arrays
+
+__all__ = [
+    "Check",
+    "array_check",
+    "call_label",
+    "graded_test",
+    "per_call",
+    "pinhole",
+    "points_in_front",
+    "tuple_check",
+]
+
+Check = Callable[[Outcome], tuple[float, str]]
+
+
+def per_call(labels: Sequence[str], checks: Sequence[Check]) -> Scorer:
+    """A scorer awarding the mean over calls of each call's check fraction (in [0, 1])."""
+    labels = list(labels)
+    checks = list(checks)
+
+    def scorer(outcomes: Sequence[Outcome]) -> tuple[float, str]:
+        if len(outcomes) != len(checks):
+            return 0.0, f"expected {len(checks)} results, got {len(outcomes)}"
+        fractions = []
+        problems = []
+        for label, check, outcome in zip(labels, checks, outcomes):
+            try:
+                f, msg = check(outcome)
+            except Exception as exc:  # a trusted check must never crash the grader on odd data
+                f, msg = 0.0, f"could not check the result ({type(exc).__name__})"
+            f = float(min(max(f, 0.0), 1.0)) if math.isfinite(f) else 0.0
+            fractions.append(f)
+            if f < 1.0:
+                problems.append(f"{label}: {msg}")
+        score = sum(fractions) / len(fractions) if fractions else 0.0
+        if score >= 1.0:
+            return 1.0, f"all {len(checks)} checks passed"
+        n_ok = sum(f >= 1.0 for f in fractions)
+        shown = "; ".join(problems[:3]) + (" ..." if len(problems) > 3 else "")
+        return score, f"{n_ok}/{len(checks)} checks passed. {shown}"
+
+    return scorer
+
+
+def array_check(expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9) -> Check:
+    def check(outcome: Outcome) -> tuple[float, str]:
+        ok, msg = compare_arrays(outcome, expected, rtol=rtol, atol=atol)
+        return (1.0 if ok else 0.0), msg
+
+    return check
+
+
+def tuple_check(parts: Sequence[Check], names: Sequence[str]) -> Check:
+    """A result that is a tuple of ``len(parts)`` items, each checked separately (equal weights)."""
+
+    def check(outcome: Outcome) -> tuple[float, str]:
+        if not outcome.ok:
+            return 0.0, outcome.error or "the call failed"
+        value = outcome.value
+        if type(value) not in (list, tuple) or len(value) != len(parts):
+            return 0.0, f"expected a tuple ({', '.join(names)}) of {len(parts)} items"
+        total = 0.0
+        msgs = []
+        for name, part, item in zip(names, parts, value):
+            f, msg = part(Outcome(True, item))
+            total += f
+            if f < 1.0:
+                msgs.append(f"{name}: {msg}")
+        return total / len(parts), "; ".join(msgs) or "ok"
+
+    return check
+
+
+def _describe(x: Any) -> str:
+    if isinstance(x, np.ndarray):
+        return f"array{x.shape}"
+    if isinstance(x, float):
+        return f"{x:.4g}"
+    if isinstance(x, list):
+        return f"list of {len(x)}"
+    return repr(x)
+
+
+def call_label(function: str, args: Sequence[Any], kwargs: Mapping[str, Any] | None = None) -> str:
+    parts = [_describe(a) for a in args] + [f"{k}={_describe(v)}" for k, v in (kwargs or {}).items()]
+    return f"{function}({', '.join(parts)})"
+
+
+def _calls_and_checks(
+    entries: Sequence[tuple[str, tuple[Any, ...], dict[str, Any], Check]],
+) -> tuple[list[Call], Scorer]:
+    calls = [Call(fn, args, kw) for fn, args, kw, _ in entries]
+    labels = [call_label(fn, args, kw) for fn, args, kw, _ in entries]
+    return calls, per_call(labels, [c for *_, c in entries])
+
+
+def graded_test(name: str, grade_id: str, points: float, hidden: bool, timeout: float = 10.0):
+    """Decorator turning ``build(rng) -> entries`` into a :class:`GradedTest`."""
+
+    def wrap(fn: Callable[[np.random.Generator], Sequence[tuple]]) -> GradedTest:
+        def build(rng: np.random.Generator) -> tuple[Sequence[Call], Scorer]:
+            return _calls_and_checks(fn(rng))
+
+        build.__doc__ = fn.__doc__
+        build.__wrapped__ = fn  # where the test is defined (grade.exercises_hash hashes that file too)
+        return GradedTest(
+            name=name, grade_id=grade_id, points=points, hidden=hidden, build=build, timeout=timeout
+        )
+
+    return wrap
+
+
+def pinhole(fx: float, fy: float, cx: float = 0.0, cy: float = 0.0):
+    """The trusted :class:`flowtrack.camera.PinholeCamera` with these intrinsics."""
+    from flowtrack.camera import PinholeCamera
+
+    return PinholeCamera(float(fx), float(fy), float(cx), float(cy))
+
+
+def points_in_front(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` random points, shape (n, 3), with x, y in [-1, 1] and depth z in [0.5, 4] (in front of a camera)."""
+    X = rng.uniform(-1.0, 1.0, size=(n, 3))
+    X[:, 2] = rng.uniform(0.5, 4.0, size=n)
+    return X

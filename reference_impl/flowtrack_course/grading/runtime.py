@@ -1,0 +1,296 @@
+"""What the sandbox's Python sees: the interpreter and its standard library (mirrored when the
+sandbox's uid cannot read them), the site-packages, a filtered copy of flowtrack (blocked modules
+replaced by stubs), stub packages bound over blocked third-party modules, and the runner
+(``_child.py``). Every copy lives in the sandbox cache (:mod:`flowtrack_course.grading.cache`).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import re
+import shutil
+import sys
+import sysconfig
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import flowtrack
+
+from .cache import atomic_dir, cache_root, link_or_copy, world_readable
+
+__all__ = ["FLOWTRACK_DIR", "Runtime", "allowed_packages", "filtered_flowtrack",
+           "package_entries", "locate_module",
+           "mirror_site", "python_runtime", "runner_dir", "site_dirs", "stub_dir"]
+
+# The library the sandbox copies (as installed: an editable checkout or site-packages).
+FLOWTRACK_DIR = Path(flowtrack.__file__).resolve().parent
+# It is the library only (the tooling is the sibling package flowtrack_course), so it is copied as it is.
+
+
+@dataclass(frozen=True)
+class Runtime:
+    executable: str  # path of the python binary (outside)
+    prefix: str  # base prefix as seen inside bwrap (original path)
+    source: str  # directory bound at ``prefix`` inside bwrap
+    stdlib: tuple[str, ...]  # stdlib dirs (outside paths)
+    lib_dir: str | None  # LD_LIBRARY_PATH for the fallback when mirrored
+
+
+@functools.lru_cache(maxsize=4)
+def python_runtime(need_world_readable: bool) -> Runtime:
+    prefix = Path(sys.base_prefix)
+    ver = f"{sys.version_info.major}.{sys.version_info.minor}"
+    exe = prefix / "bin" / f"python{ver}"
+    if not exe.exists():
+        exe = Path(getattr(sys, "_base_executable", sys.executable)).resolve()
+    stdlib = Path(sysconfig.get_paths(vars={"installed_base": str(prefix), "base": str(prefix)})["stdlib"])
+    real_prefix = prefix.resolve()
+    stdlib_dirs = tuple(
+        p
+        for p in sys.path
+        if p and "site-packages" not in p and Path(p).is_dir()
+        and Path(p).resolve().is_relative_to(real_prefix)
+    ) or (str(stdlib),)
+    if not need_world_readable or (world_readable(prefix) and world_readable(exe)):
+        return Runtime(str(exe), str(prefix), str(prefix), stdlib_dirs, None)
+    key = hashlib.sha256(f"{prefix}\0{sys.version}".encode()).hexdigest()[:16]
+    skip = {"site-packages", "test", "idlelib", "tkinter", "turtledemo", "lib2to3", "ensurepip"}
+
+    def build(tmp: Path) -> None:
+        (tmp / "bin").mkdir(mode=0o755)
+        link_or_copy(exe, tmp / "bin" / exe.name)
+        (tmp / "lib").mkdir(mode=0o755)
+        for lib in (prefix / "lib").glob("libpython*"):
+            if lib.is_file():
+                link_or_copy(lib, tmp / "lib" / lib.name)
+        src_std = prefix / "lib" / f"python{ver}"
+        for dirpath, dirnames, filenames in os.walk(src_std):
+            rel = Path(dirpath).relative_to(src_std)
+            if rel == Path("."):
+                dirnames[:] = [d for d in dirnames if d not in skip]
+            out = tmp / "lib" / f"python{ver}" / rel
+            out.mkdir(mode=0o755, parents=True, exist_ok=True)
+            for f in filenames:
+                if not os.path.islink(os.path.join(dirpath, f)):
+                    link_or_copy(Path(dirpath) / f, out / f)
+
+    mirror = atomic_dir(cache_root() / "python" / key, build, prune=True)
+    mirror_std = tuple(str(mirror / Path(p).resolve().relative_to(prefix.resolve())) for p in stdlib_dirs)
+    return Runtime(str(mirror / "bin" / exe.name), str(prefix), str(mirror), mirror_std, str(mirror / "lib"))
+
+
+def site_dirs() -> list[str]:
+    import site
+
+    dirs = []
+    for d in site.getsitepackages():
+        if Path(d).is_dir() and d not in dirs:
+            dirs.append(d)
+    return dirs
+
+
+def mirror_site(site: Path) -> Path:
+    """A world-readable mirror (hard links, else copies) of a site-packages folder the sandbox's
+    unprivileged uid cannot reach (e.g. a virtual environment under ``/root``); rebuilt when a
+    package is added, removed or replaced. flowtrack itself is left out (the sandbox gets its
+    filtered copy)."""
+    h = hashlib.sha256(f"{site.resolve()}\0{sys.version}".encode())
+    for e in sorted(os.scandir(site), key=lambda e: e.name):
+        h.update(f"{e.name}\0{e.stat(follow_symlinks=False).st_mtime_ns}\n".encode())
+    key = h.hexdigest()[:20]
+
+    def build(tmp: Path) -> None:
+        for dirpath, dirnames, filenames in os.walk(site):
+            rel = Path(dirpath).relative_to(site)
+            if rel == Path("."):
+                dirnames[:] = [d for d in dirnames if d not in ("flowtrack", "flowtrack_course")]
+            dirnames[:] = [d for d in dirnames if d != "__pycache__"]
+            out = tmp / rel
+            out.mkdir(mode=0o755, parents=True, exist_ok=True)
+            os.chmod(out, 0o755)
+            for f in filenames:
+                src = Path(dirpath) / f
+                if src.is_symlink():
+                    os.symlink(os.readlink(src), out / f)
+                else:
+                    link_or_copy(src, out / f)
+
+    return atomic_dir(cache_root() / "site" / key, build, prune=True)
+
+
+def _flowtrack_signature() -> str:
+    """Names, sizes and mtimes of the files the filtered copy takes (an edit of the grader itself,
+    which the copy leaves out, does not rebuild it)."""
+    h = hashlib.sha256()
+    for p in sorted(FLOWTRACK_DIR.rglob("*")):
+        if "__pycache__" in p.parts or not p.is_file():
+            continue
+        st = p.stat()
+        h.update(f"{p.relative_to(FLOWTRACK_DIR)}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+    return h.hexdigest()
+
+
+def _stub_source(name: str) -> str:
+    return f"raise ImportError({name + ' is not available in this exercise'!r})\n"
+
+
+@functools.lru_cache(maxsize=64)
+def filtered_flowtrack(blocked: tuple[str, ...]) -> Path:
+    """A read-only copy of flowtrack with blocked modules replaced by stubs; returns its sys.path root."""
+    mods = sorted({b.split(".")[1] for b in blocked if b.startswith("flowtrack.")})
+    key = hashlib.sha256(f"{_flowtrack_signature()}\0{','.join(mods)}".encode()).hexdigest()[:20]
+
+    def build(tmp: Path) -> None:
+        dst = tmp / "flowtrack"
+
+        def ignore(d: str, names: list[str]) -> list[str]:
+            out = [n for n in names if n == "__pycache__" or n.endswith(".pyc")]
+            return out
+
+        shutil.copytree(FLOWTRACK_DIR, dst, ignore=ignore)
+        for m in mods:
+            if (dst / m).is_dir():
+                shutil.rmtree(dst / m)
+                (dst / m).mkdir()
+                (dst / m / "__init__.py").write_text(_stub_source(f"flowtrack.{m}"))
+            else:
+                (dst / f"{m}.py").write_text(_stub_source(f"flowtrack.{m}"))
+        for dirpath, _dirnames, filenames in os.walk(tmp):
+            os.chmod(dirpath, 0o755)
+            for f in filenames:
+                os.chmod(os.path.join(dirpath, f), 0o644)
+
+    return atomic_dir(cache_root() / "ft" / key, build, prune=True)
+
+
+def stub_dir(name: str) -> Path:
+    key = hashlib.sha256(name.encode()).hexdigest()[:16]
+
+    def build(tmp: Path) -> None:
+        (tmp / "__init__.py").write_text(_stub_source(name))
+        os.chmod(tmp / "__init__.py", 0o644)
+
+    return atomic_dir(cache_root() / "stubs" / key, build)
+
+
+@functools.lru_cache(maxsize=1)
+def runner_dir() -> Path:
+    src = (Path(__file__).parent / "_child.py").read_bytes()
+    key = hashlib.sha256(src).hexdigest()[:16]
+
+    def build(tmp: Path) -> None:
+        (tmp / "_child.py").write_bytes(src)
+        os.chmod(tmp / "_child.py", 0o644)
+
+    return atomic_dir(cache_root() / "bin" / key, build, prune=True)
+
+
+def locate_module(name: str, roots: Sequence[str]) -> Path | None:
+    """Where ``name`` (dotted) lives under one of ``roots`` (a package dir or a module file)."""
+    parts = name.split(".")
+    for root in roots:
+        base = Path(root, *parts[:-1])
+        if not base.is_dir():
+            continue
+        cand = base / parts[-1]
+        if cand.is_dir():
+            return cand
+        for f in sorted(base.glob(parts[-1] + ".*")):
+            if f.is_file() and (f.suffix == ".py" or f.suffix == ".so" or f.name.endswith(".pyd")):
+                return f
+    return None
+
+
+
+def _site_state() -> tuple[int, ...]:
+    """mtimes of the site-packages folders: an install or removal changes them (cache key)."""
+    out = []
+    for d in site_dirs():
+        try:
+            out.append(os.stat(d).st_mtime_ns)
+        except OSError:
+            out.append(0)
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=4)
+def _distributions(state: tuple[int, ...]) -> dict[str, list[str]]:
+    import importlib.metadata as md
+
+    return md.packages_distributions()
+
+
+def allowed_packages(allowed: Sequence[str]) -> tuple[str, ...]:
+    """The top-level packages an allowlist needs: those it names (``scipy.linalg`` -> ``scipy``) and,
+    through their distributions' requirements (extras left out), what they import themselves
+    (``scipy`` -> ``numpy``; ``sympy`` -> ``mpmath``). Sorted.
+
+    >>> allowed_packages(["numpy", "scipy.linalg"])
+    ('numpy', 'scipy')
+    """
+    return _allowed_packages(tuple(allowed), _site_state())
+
+
+@functools.lru_cache(maxsize=64)
+def _allowed_packages(allowed: tuple[str, ...], state: tuple[int, ...]) -> tuple[str, ...]:
+    import importlib.metadata as md
+
+    tops = {a.split(".")[0] for a in allowed}
+    by_top = _distributions(state)
+    todo = [d for t in tops for d in by_top.get(t, [])]
+    seen: set[str] = set()
+    while todo:
+        name = todo.pop()
+        if name.lower() in seen:
+            continue
+        seen.add(name.lower())
+        try:
+            dist = md.distribution(name)
+        except md.PackageNotFoundError:
+            continue
+        tops |= {t for t, dists in by_top.items() if name in dists and not t.startswith("_")}
+        for req in dist.requires or ():
+            if "extra ==" in req.replace('"', "").replace("'", ""):
+                continue
+            m = re.match(r"[A-Za-z0-9][A-Za-z0-9._-]*", req)
+            if m:
+                todo.append(m.group(0))
+    return tuple(sorted(tops))
+
+
+def package_entries(site: str, packages: Sequence[str]) -> list[str]:
+    """The entries of the site-packages folder ``site`` that the top-level ``packages`` consist of:
+    the package folders or modules, their distributions' bundled libraries (``numpy.libs``,
+    ``scipy.libs``) and other top-level files those distributions installed there."""
+    return list(_package_entries(str(site), tuple(packages), _site_state()))
+
+
+@functools.lru_cache(maxsize=64)
+def _package_entries(site: str, packages: tuple[str, ...], state: tuple[int, ...]) -> tuple[str, ...]:
+    import importlib.metadata as md
+
+    by_top = _distributions(state)
+    root = Path(site).resolve()
+    names: set[str] = set()
+    for top in packages:
+        for cand in (top, f"{top}.py"):
+            if (root / cand).exists():
+                names.add(cand)
+        for dist_name in by_top.get(top, []):
+            try:
+                dist = md.distribution(dist_name)
+            except md.PackageNotFoundError:
+                continue
+            for f in dist.files or ():
+                try:
+                    p = Path(dist.locate_file(f)).resolve()
+                except (OSError, RuntimeError):
+                    continue
+                if p.is_relative_to(root) and p != root:
+                    first = p.relative_to(root).parts[0]
+                    if not first.endswith((".dist-info", ".egg-info")) and first != "__pycache__":
+                        names.add(first)
+    return tuple(sorted(n for n in names if (root / n).exists()))

@@ -1,0 +1,104 @@
+"""flowtrack works from a wheel installed outside any checkout, against a course folder named by
+``--course`` (issue 13): the tooling never finds the course by counting its own parent folders.
+
+The wheel is built from a copy of the sources (``pip wheel --no-deps``) and installed with
+``--no-deps`` into a fresh virtual environment made without ``--system-site-packages``. Its
+dependencies (numpy, scipy, open3d, nbgrader, ...) are not downloaded again: a ``.pth`` file in the
+fresh environment adds the test environment's site-packages *after* its own. That keeps the test
+offline and quick, and still proves the point: the flowtrack packages the fresh environment imports
+are the wheel's (a ``.pth`` path line does not run the ``.pth`` files of the folder it adds, so the
+editable install of this checkout stays invisible), checked below. (``--system-site-packages``
+would not do: a venv made from this venv's interpreter sees the *base* interpreter's packages, not
+this venv's.)
+
+Then, from an unrelated folder and with ``$FLOWTRACK_COURSE`` unset, the installed ``flowtrack``
+command runs ``release --course <checkout>`` and ``ports --lang octave --course <checkout>``.
+Octave is a Debian package (``make test`` installs it); without it the test fails, never skips.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import site
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("wheel")]
+
+
+def _run(cmd, cwd, env, timeout=900):
+    proc = subprocess.run([str(c) for c in cmd], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+    assert proc.returncode == 0, (
+        f"{cmd} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    )
+    return proc.stdout
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    """(venv folder, environment without FLOWTRACK_COURSE) with the wheel installed."""
+    tmp = tmp_path_factory.mktemp("wheel")
+    src = tmp / "src"  # a copy: building in the checkout would leave build/ and egg-info there
+    src.mkdir()
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(ROOT / name, src / name)
+    shutil.copytree(ROOT / "reference_impl", src / "reference_impl",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info"))
+    env = {k: v for k, v in os.environ.items() if k not in ("FLOWTRACK_COURSE", "PYTHONPATH")}
+    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp / "dist", src], tmp, env)
+    (wheel,) = (tmp / "dist").glob("flowtrack-*.whl")
+    venv = tmp / "venv"
+    _run([sys.executable, "-m", "venv", venv], tmp, env)  # no --system-site-packages
+    py = venv / "bin" / "python"
+    _run([py, "-m", "pip", "install", "-q", "--no-deps", "--no-index", wheel], tmp, env)
+    purelib = "import sysconfig; print(sysconfig.get_path('purelib'))"
+    fresh_site = Path(_run([py, "-c", purelib], tmp, env).strip())
+    ours = [p for p in site.getsitepackages() if Path(p).is_dir()] or [sysconfig.get_path("purelib")]
+    (fresh_site / "zz_flowtrack_test_deps.pth").write_text("".join(p + "\n" for p in ours))
+    return venv, env
+
+
+def test_the_wheel_is_what_the_fresh_environment_imports(installed, tmp_path):
+    venv, env = installed
+    code = ("import flowtrack, flowtrack_course.grading.grade as g; "
+            "print(flowtrack.__file__); print(g.__file__)")
+    out = _run([venv / "bin" / "python", "-c", code], tmp_path, env)
+    for line in out.split():
+        assert Path(line).is_relative_to(venv), f"{line} is not the installed wheel's"
+        assert not Path(line).is_relative_to(ROOT)
+
+
+def test_release_from_another_folder_with_course(installed, tmp_path):
+    venv, env = installed
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    out = _run([venv / "bin" / "flowtrack", "release", "--course", ROOT, "--out", tmp_path / "bundle"],
+               elsewhere, env)
+    assert "wrote" in out
+    assert sorted(p.name for p in (tmp_path / "bundle" / "exercises").glob("*.ipynb")) == sorted(
+        p.name for p in (ROOT / "exercises").glob("*.ipynb"))
+    n_lessons = len(list((ROOT / "lessons").glob("[0-9]*.md")))
+    assert len(list((tmp_path / "bundle" / "lessons").glob("*.ipynb"))) == n_lessons
+    # without --course (and no $FLOWTRACK_COURSE) the current folder is the course: a clear error
+    proc = subprocess.run([venv / "bin" / "flowtrack", "release", "--out", tmp_path / "b2"],
+                          cwd=elsewhere, env=env, capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert f"course folder {elsewhere.resolve()} (the current folder) has no exercises/, lessons/" in (
+        proc.stderr
+    )
+
+
+def test_octave_port_from_another_folder_with_course(installed, tmp_path):
+    venv, env = installed
+    if shutil.which("octave") is None:
+        pytest.fail("octave is missing: apt-get install octave (make test installs it)")
+    out = _run([venv / "bin" / "flowtrack", "ports", "--lang", "octave", "--course", ROOT, "--build-dir",
+                tmp_path / "build", "--no-progress"], tmp_path, env)
+    assert "octave" in out and " 0 failed" in out, out
