@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from .run import FlowPair
 
 __all__ = [
-    "cluster_colours", "plot_clusters", "plot_flow_field", "plot_motorcycle", "plot_trajectories",
+    "cluster_colours", "covariance_ellipse", "plot_clusters", "plot_flow_field", "plot_motorcycle", "plot_trajectories",
     "plot_tud_campus", "save_small_png", "write_gif",
 ]
 
@@ -36,14 +36,37 @@ def _color(track_id: int):
     return matplotlib.colormaps["tab10"](track_id % 10)
 
 
-def _ellipse(ax, mean, cov, nsig: float = 2.0, **kw) -> None:
+def covariance_ellipse(ax, mean, cov, nsig: float = 2.0, **kw) -> None:
+    """Draw the ``nsig``-sigma ellipse of a 2-D Gaussian ``N(mean, cov)`` (shapes (2,), (2, 2)) on ``ax``.
+
+    The ellipse :math:`(x - m)^\top C^{-1} (x - m) = n_\sigma^2`: semi-axes :math:`n_\sigma\sqrt{\lambda_k}`
+    along the eigenvectors of ``cov``; ``kw`` go to :class:`matplotlib.patches.Ellipse` (unfilled).
+
+    Examples
+    --------
+    >>> import matplotlib
+    >>> matplotlib.use("Agg")
+    >>> import matplotlib.pyplot as plt
+    >>> fig, ax = plt.subplots()
+    >>> covariance_ellipse(ax, [0.0, 0.0], [[4.0, 0.0], [0.0, 1.0]])
+    >>> e = ax.patches[0]
+    >>> float(e.width), float(e.height)
+    (8.0, 4.0)
+    >>> plt.close(fig)
+    """
     from matplotlib.patches import Ellipse
+
+    mean = np.asarray(mean, dtype=float)
+    cov = np.asarray(cov, dtype=float)
 
     vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
     vals = np.clip(vals, 0.0, None)
     angle = np.degrees(np.arctan2(vecs[1, 1], vecs[0, 1]))
     ax.add_patch(Ellipse(mean, 2 * nsig * np.sqrt(vals[1]), 2 * nsig * np.sqrt(vals[0]), angle=angle,
                          fill=False, **kw))
+
+
+_ellipse = covariance_ellipse
 
 
 def plot_flow_field(inp: DemoInput, pair: FlowPair, path: Path) -> None:
