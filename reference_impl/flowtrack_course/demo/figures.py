@@ -16,8 +16,8 @@ if TYPE_CHECKING:
     from .run import FlowPair
 
 __all__ = [
-    "cluster_colours", "covariance_ellipse", "plot_clusters", "plot_flow_field", "plot_motorcycle", "plot_trajectories",
-    "plot_tud_campus", "save_small_png", "write_gif",
+    "cluster_colours", "covariance_ellipse", "plot_clusters", "plot_flow_field", "plot_motorcycle",
+    "plot_trajectories", "plot_tud_campus", "save_small_png", "write_gif",
 ]
 
 
@@ -37,7 +37,7 @@ def _color(track_id: int):
 
 
 def covariance_ellipse(ax, mean, cov, nsig: float = 2.0, **kw) -> None:
-    """Draw the ``nsig``-sigma ellipse of a 2-D Gaussian ``N(mean, cov)`` (shapes (2,), (2, 2)) on ``ax``.
+    r"""Draw the ``nsig``-sigma ellipse of a 2-D Gaussian ``N(mean, cov)`` (shapes (2,), (2, 2)) on ``ax``.
 
     The ellipse :math:`(x - m)^\top C^{-1} (x - m) = n_\sigma^2`: semi-axes :math:`n_\sigma\sqrt{\lambda_k}`
     along the eigenvectors of ``cov``; ``kw`` go to :class:`matplotlib.patches.Ellipse` (unfilled).
