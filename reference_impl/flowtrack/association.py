@@ -287,9 +287,12 @@ def assign(cost, gate=np.inf, *, objective="most_pairs", validate: bool = True):
     prohibitive cost ``min(M, N) + 1`` (more than any matching's total admissible cost, so
     cardinality dominates); pairs assigned at that cost are reported as unmatched.
 
-    Solving the ungated problem and discarding gated pairs afterwards is wrong: with
-    ``cost = [[0, 6], [6, 11]]`` and ``gate = 10`` the ungated optimum ``(0,0), (1,1)`` (total 11)
-    loses the pair ``(1,1)``, leaving one match, while ``(0,1), (1,0)`` (total 12) keeps two.
+    Solving the ungated problem and discarding gated pairs afterwards is wrong for this rule (it
+    can lose a pair): with ``cost = [[0, 6], [6, 11]]`` and ``gate = 10`` the ungated optimum
+    ``(0,0), (1,1)`` (total 11) loses the pair ``(1,1)``, leaving one match, while ``(0,1), (1,0)``
+    (total 12) keeps two. It is also wrong for the course's likelihood-ratio objective (lesson 5),
+    where discarding can keep a worse matching (e.g. ``[[1, 9.5], [2, 50]] - 10``: −8.5 instead
+    of −9).
 
     With ``objective="min_cost"`` the result instead minimises :math:`\sum_{ij} C_{ij} y_{ij}` over
     the matchings of admissible pairs, an unmatched row or column costing 0: a pair is taken only if

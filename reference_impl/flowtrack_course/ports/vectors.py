@@ -263,8 +263,8 @@ def mahalanobis_assignment() -> dict:
     from flowtrack.association import chi2_gate
 
     cases = []
-    # The gate trap of the API: with costs [[0, 6], [6, 11]] and gate 10, solving ungated and
-    # dropping the (1,1) pair afterwards keeps one match; the right answer keeps two, crossed.
+    # The gate trap of the API's most-pairs rule: with costs [[0, 6], [6, 11]] and gate 10, solving
+    # ungated and dropping the (1,1) pair afterwards loses a pair; the rule's answer keeps two, crossed.
     s6 = np.sqrt(6.0)
     x = 1.0 / (2.0 * s6)
     t1 = [x, float(np.sqrt(6.0 - x * x))]
