@@ -717,7 +717,8 @@ def test_grading_imports_only_the_grader_extra(tmp_path):
     for mod in data["modules"]:
         # flowtrack itself; Cython's pseudo-module; scikit-sparse is optional (a guarded import in
         # flowtrack.sceneflow, which falls back to SuperLU/CG without it)
-        if mod in ("flowtrack", "cython_runtime", "sksparse", "__main__") or mod.startswith("_"):
+        if mod in ("flowtrack", "flowtrack_course", "cython_runtime", "sksparse", "__main__") \
+                or mod.startswith("_"):
             continue
         names = {d.lower().replace("_", "-") for d in dists.get(mod, [mod])}
         used[mod] = names

@@ -106,5 +106,6 @@ EXERCISE = Exercise(
     answer_cells=("data_term_rows", "pixel_normal_equations"),
     blocked=("flowtrack.rgbd_flow", "flowtrack._rgbd_kernels", "flowtrack.sceneflow", "flowtrack.symbolic",
              "flowtrack.camera"),
+    allowed=('numpy',),
     tests=(_ex12_rows_public, _ex12_rows_hidden, _ex12_normal_public, _ex12_normal_hidden),
 )
