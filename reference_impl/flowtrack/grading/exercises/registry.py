@@ -1,4 +1,4 @@
-"""The registry of the ten exercises: one module per exercise, each defining ``EXERCISE``.
+"""The registry of the eleven exercises: one module per exercise, each defining ``EXERCISE``.
 
 A new exercise is a module ``exNN_<name>.py`` in this package (its tests, built with the helpers of
 :mod:`~flowtrack.grading.exercises.checks`, and its :class:`~flowtrack.grading.spec.Exercise`) added to
@@ -21,6 +21,7 @@ from . import (
     ex08_hungarian,
     ex09_track_management,
     ex10_motion_clustering,
+    ex11_concepts,
 )
 
 __all__ = ["EXERCISES", "get_exercise"]
@@ -36,6 +37,7 @@ EXERCISES: tuple[Exercise, ...] = (
     ex08_hungarian.EXERCISE,
     ex09_track_management.EXERCISE,
     ex10_motion_clustering.EXERCISE,
+    ex11_concepts.EXERCISE,
 )
 
 
