@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..spec import Call, GradedTest, Outcome, Scorer
-from .feedback import Report, Variant, compare, mistakes_of, safe_error, safe_text
+from .feedback import Report, Variant, checked_of, compare, consistent_mistakes, safe_error, safe_text
 
 __all__ = [
     "Check",
@@ -65,7 +65,7 @@ def per_call(
         fractions = []
         problems = []
         safe_problems = []
-        mistakes: list[str] = []
+        messages = []
         for k, (label, fn, check, outcome) in enumerate(zip(labels, functions, checks, outcomes)):
             try:
                 f, msg = check(outcome)
@@ -73,13 +73,14 @@ def per_call(
                 f, msg = 0.0, f"could not check the result ({type(exc).__name__})"
             f = float(min(max(f, 0.0), 1.0)) if math.isfinite(f) else 0.0
             fractions.append(f)
-            mistakes += [m for m in mistakes_of(msg) if m not in mistakes]
+            messages.append(msg)
             if f < 1.0:
                 problems.append(f"{label}: {msg}")
                 safe_problems.append(f"call {k + 1} of {len(checks)} ({fn}): {safe_text(msg)}")
         score = sum(fractions) / len(fractions) if fractions else 0.0
         if score >= 1.0:
             return 1.0, Report(f"all {len(checks)} checks passed")
+        mistakes = consistent_mistakes(messages, [f >= 1.0 for f in fractions])
         n_ok = sum(f >= 1.0 for f in fractions)
         more = " ..." if len(problems) > 3 else ""
         head = f"{n_ok}/{len(checks)} checks passed. "
@@ -120,15 +121,19 @@ def tuple_check(parts: Sequence[Check], names: Sequence[str]) -> Check:
         total = 0.0
         msgs = []
         safe = []
-        mistakes: list[str] = []
+        messages = []
+        oks = []
         for name, part, item in zip(names, parts, value):
             f, msg = part(Outcome(True, item))
             total += f
-            mistakes += [m for m in mistakes_of(msg) if m not in mistakes]
+            messages.append(msg)
+            oks.append(f >= 1.0)
             if f < 1.0:
                 msgs.append(f"{name}: {msg}")
                 safe.append(f"{name}: {safe_text(msg)}")
-        return total / len(parts), Report("; ".join(msgs) or "ok", "; ".join(safe) or "ok", mistakes)
+        checked = frozenset().union(*(checked_of(m) for m in messages))
+        mistakes = consistent_mistakes(messages, oks)
+        return total / len(parts), Report("; ".join(msgs) or "ok", "; ".join(safe) or "ok", mistakes, checked)
 
     return check
 

@@ -87,7 +87,7 @@ def _jacobian_check(
         ]
         wrong = [f"J[:, {i}, {j}]" for i in range(2) for j in range(3) if (i, j) not in good]
         head = f"wrong entries {', '.join(wrong)}: "
-        return len(good) / 6.0, Report(head + d.public, head + d.safe, d.mistakes)
+        return len(good) / 6.0, Report(head + d.public, head + d.safe, d.mistakes, d.checked)
 
     return check
 

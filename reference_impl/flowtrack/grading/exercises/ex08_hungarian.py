@@ -55,6 +55,8 @@ def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
     greedy = [greedy_pairs(cost), row_greedy_pairs(cost)]
     M, N = cost.shape
     K = min(M, N)
+    visible = [m for m, total in (("greedy-assignment", min(sum(cost[i, j] for i, j in g) for g in greedy)),
+                                  ("assignment-maximises", worst)) if total > best + rtol * max(1.0, abs(best))]
 
     def check(outcome: Outcome) -> tuple[float, str]:
         if not outcome.ok:
@@ -77,7 +79,7 @@ def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
         total = float(cost[rows, cols].sum())
         tol = rtol * max(1.0, abs(best))
         if abs(total - best) <= tol:
-            return 1.0, "ok"
+            return 1.0, Report("ok", checked=visible)
         mistakes = []
         if set(zip(rows.tolist(), cols.tolist())) in greedy:
             mistakes.append("greedy-assignment")
@@ -88,6 +90,7 @@ def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
             f"a valid assignment but not a minimal one (total {total:.6g}, the minimum is {best:.6g})",
             f"a valid assignment but not a minimal one (its total exceeds the minimum by {gap:.2g} of it)",
             mistakes,
+            visible,
         )
 
     return check

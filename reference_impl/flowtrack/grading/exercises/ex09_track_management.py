@@ -130,13 +130,13 @@ def _frames_check(expected: list[list[list[Any]]], variants: dict | None = None)
             elif first_bad is None:
                 first_bad = t
         if first_bad is None:
-            return 1.0, "ok"
+            return 1.0, Report("ok", checked=variants)
         normed = [norm(g) for g in got]
         mistakes = [k for k, v in variants.items() if normed == [[tuple(x) for x in f] for f in v]]
         head = f"{good}/{len(expected)} frames right, first wrong frame: {first_bad}"
         e = [tuple(x) for x in expected[first_bad]]
         public = f"{head}: expected {e}, got {normed[first_bad]}"
-        return good / len(expected), Report(public, head, mistakes)
+        return good / len(expected), Report(public, head, mistakes, checked=variants)
 
     return check
 

@@ -76,7 +76,7 @@ def _clusters_check(
             return (1.0, "ok") if gc.size == 0 and gv.size == 0 else (0.0, "expected no clusters")
         if gc.shape != (K, D) or gv.shape != (K, D):
             msg = f"expected {K} clusters: arrays of shape ({K}, {D}), got {gc.shape} and {gv.shape}"
-            return 0.0, Report(msg, msg, named(gc, gv) if gc.ndim == 2 and gv.ndim == 2 else ())
+            return 0.0, Report(msg, msg, named(gc, gv) if gc.ndim == 2 and gv.ndim == 2 else (), variants)
         if not (np.isfinite(gc).all() and np.isfinite(gv).all()):
             return 0.0, "NaN or inf in the result"
         cost = np.linalg.norm(gc[:, None, :] - cents[None], axis=2) + np.linalg.norm(
@@ -86,9 +86,9 @@ def _clusters_check(
         ok_c = np.allclose(gc[r], cents[c], rtol=rtol, atol=atol)
         ok_v = np.allclose(gv[r], vels[c], rtol=rtol, atol=atol)
         if ok_c and ok_v:
-            return 1.0, "ok"
+            return 1.0, Report("ok", checked=variants)
         msg = "the right number of clusters, but " + ("centroids" if not ok_c else "velocities") + " differ"
-        return 0.0, Report(msg, msg, named(gc, gv))
+        return 0.0, Report(msg, msg, named(gc, gv), variants)
 
     return check
 

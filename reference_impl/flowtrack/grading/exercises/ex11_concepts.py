@@ -229,7 +229,9 @@ def symbolic_check(expected, symbols: dict, variants: dict[str, Any], *, up_to_s
             ]
             msg = f"not equivalent to the expected matrix: entries {', '.join(wrong)} differ"
         else:
-            msg = "not equivalent to the expected expression" + (" (up to a constant factor)" if up_to_scale else "")
+            msg = "not equivalent to the expected expression" + (
+                " (up to a constant factor)" if up_to_scale else ""
+            )
         return 0.0, Report(msg, msg, mistakes)
 
     return check
@@ -282,9 +284,7 @@ def subspace_check(basis: np.ndarray, variants: dict[str, np.ndarray], tol: floa
     return check
 
 
-def number_check(
-    lo: float, hi: float, variants: dict[str, tuple[float, float]], what: str
-) -> Check:
+def number_check(lo: float, hi: float, variants: dict[str, tuple[float, float]], what: str) -> Check:
     """A number in ``[lo, hi]``; a number in a variant's range names that mistake."""
 
     def check(outcome: Outcome) -> tuple[float, str]:
@@ -310,7 +310,9 @@ def _within(x: float, rel: float = 0.01) -> tuple[float, float]:
 def _nees_check(q_true: float, q_filter: float, r: float) -> Check:
     vals = nees_expected(q_true, q_filter, r)
     lo, hi = _within(vals["ok"])
-    variants = {k: _within(v) for k, v in vals.items() if k != "ok" and abs(v - vals["ok"]) > 0.03 * vals["ok"]}
+    variants = {
+        k: _within(v) for k, v in vals.items() if k != "ok" and abs(v - vals["ok"]) > 0.03 * vals["ok"]
+    }
     return number_check(lo, hi, variants, "the expected NEES")
 
 
@@ -336,9 +338,13 @@ def _ex11_q(rng):
     return [("q_order", (), {}, symbolic_check(q_order_expected(), _syms("dt q"), _q_order_variants()))]
 
 
-@graded_test("Euler-Lagrange equation of the energy (sympy, up to a factor)", "test_euler_lagrange", 2.0, hidden=False)
+@graded_test(
+    "Euler-Lagrange equation of the energy (sympy, up to a factor)", "test_euler_lagrange", 2.0, hidden=False
+)
 def _ex11_el(rng):
-    check = symbolic_check(euler_lagrange_expected(), _syms("a b v dt lam Lv"), _el_variants(), up_to_scale=True)
+    check = symbolic_check(
+        euler_lagrange_expected(), _syms("a b v dt lam Lv"), _el_variants(), up_to_scale=True
+    )
     return [("euler_lagrange", (), {}, check)]
 
 
@@ -355,10 +361,14 @@ def _ex11_unexcited_public(rng):
 
 @graded_test("what the listings' Q cannot excite, other time steps", "test_unexcited", 0.5, hidden=True)
 def _ex11_unexcited_hidden(rng):
-    return [("unexcited_directions", (dt,), {}, _unexcited_check(dt)) for dt in rng.uniform(0.02, 1.0, 2).tolist()]
+    return [
+        ("unexcited_directions", (dt,), {}, _unexcited_check(dt)) for dt in rng.uniform(0.02, 1.0, 2).tolist()
+    ]
 
 
-@graded_test("NEES of a mis-specified filter: q_true = 1, q_filter = 0.1, r = 1", "test_nees", 1.0, hidden=False)
+@graded_test(
+    "NEES of a mis-specified filter: q_true = 1, q_filter = 0.1, r = 1", "test_nees", 1.0, hidden=False
+)
 def _ex11_nees_public(rng):
     return [("nees_value", (1.0, 0.1, 1.0), {}, _nees_check(1.0, 0.1, 1.0))]
 

@@ -51,13 +51,19 @@ __all__ = [
 class Report(str):
     """A check's message: the public text (``str`` value), the hidden-safe text and the mistakes.
 
-    ``mistakes`` is a tuple of catalogue ids, in the order recognised, without repeats.
+    ``mistakes`` is a tuple of catalogue ids, in the order recognised, without repeats; ``checked``
+    the catalogued ids that were visible on these inputs (their wrong answer differs from the right
+    one). A test names a mistake only when every call where it was visible matched it
+    (:func:`consistent_mistakes`): one coincidence among several calls names nothing.
     """
 
     safe: str
     mistakes: tuple[str, ...]
+    checked: frozenset[str]
 
-    def __new__(cls, public: str, safe: str | None = None, mistakes: Iterable[str] = ()):
+    def __new__(
+        cls, public: str, safe: str | None = None, mistakes: Iterable[str] = (), checked: Iterable[str] = ()
+    ):
         obj = super().__new__(cls, public)
         obj.safe = str(public) if safe is None else str(safe)
         seen: list[str] = []
@@ -65,6 +71,7 @@ class Report(str):
             if m not in seen:
                 seen.append(m)
         obj.mistakes = tuple(seen)
+        obj.checked = frozenset(checked) | frozenset(m for m in seen if not m.startswith("generic-"))
         return obj
 
 
@@ -76,6 +83,32 @@ def safe_text(message: Any) -> str:
 
 def mistakes_of(message: Any) -> tuple[str, ...]:
     return tuple(getattr(message, "mistakes", ()) or ())
+
+
+def checked_of(message: Any) -> frozenset[str]:
+    return frozenset(getattr(message, "checked", ()) or ())
+
+
+def consistent_mistakes(messages: Sequence[Any], passed: Sequence[bool] = ()) -> list[str]:
+    """The mistakes of several checks (calls, or parts of a result) that every check agrees with.
+
+    A catalogued mistake counts when at least one check matched it and every failing check where it
+    was visible (in ``checked``) matched it too (a passing check does not count against it: one
+    member of a family, such as a gate with 2 degrees of freedom, is right for 2-D measurements);
+    generic diagnoses count when any check made them.
+    """
+    named: list[str] = []
+    for msg in messages:
+        named += [m for m in mistakes_of(msg) if m not in named]
+    out = []
+    for m in named:
+        if m.startswith("generic-"):
+            out.append(m)
+            continue
+        failing = [msg for k, msg in enumerate(messages) if not (k < len(passed) and passed[k])]
+        if all(m in mistakes_of(msg) for msg in failing if m in checked_of(msg)):
+            out.append(m)
+    return out
 
 
 @dataclass(frozen=True)
@@ -197,6 +230,20 @@ def diagnose(
     return []
 
 
+def visible_variants(
+    expected: np.ndarray, variants: Sequence[Variant], rtol: float, atol: float
+) -> list[str]:
+    """The ids of the variants whose wrong answer differs from ``expected`` on these inputs."""
+    out = []
+    for v in variants:
+        wrong = v.value if isinstance(v.value, np.ndarray) else as_float_array(v.value)
+        if wrong is None or v.mistake in out:
+            continue
+        if not _close(np.asarray(wrong, dtype=np.float64), expected, rtol, atol):
+            out.append(v.mistake)
+    return out
+
+
 @dataclass(frozen=True)
 class Diff:
     """The result of :func:`compare`: ``ok``, the public and the hidden-safe texts, the mistakes."""
@@ -205,9 +252,10 @@ class Diff:
     public: str
     safe: str
     mistakes: tuple[str, ...] = ()
+    checked: tuple[str, ...] = ()
 
     def report(self) -> Report:
-        return Report(self.public, self.safe, self.mistakes)
+        return Report(self.public, self.safe, self.mistakes, self.checked)
 
 
 def compare(
@@ -223,10 +271,11 @@ def compare(
     its index; the safe text only the shape, the share of wrong entries, the worst relative error and
     its index.
     """
+    expected = np.asarray(expected, dtype=np.float64)
+    checked = tuple(visible_variants(expected, variants, rtol, atol))
     if not outcome.ok:
         err = outcome.error or "the call failed"
-        return Diff(False, err, safe_error(err))
-    expected = np.asarray(expected, dtype=np.float64)
+        return Diff(False, err, safe_error(err), (), checked)
     got = as_float_array(outcome.value, expected.shape)
     if got is None:
         got_any = as_float_array(outcome.value)
@@ -235,18 +284,20 @@ def compare(
             return Diff(False, msg, msg)
         msg = f"expected an array of shape {expected.shape}, got shape {got_any.shape}"
         mistakes = tuple(diagnose(got_any, expected, variants, rtol, atol))
-        return Diff(False, msg, msg, mistakes)
+        return Diff(False, msg, msg, mistakes, checked)
     n = expected.size
     fin_e = np.isfinite(expected)
     fin_g = np.isfinite(got)
-    bad_nonfinite = (fin_e != fin_g) | (~fin_e & ~fin_g & ~((got == expected) | (np.isnan(got) & np.isnan(expected))))
+    bad_nonfinite = (fin_e != fin_g) | (
+        ~fin_e & ~fin_g & ~((got == expected) | (np.isnan(got) & np.isnan(expected)))
+    )
     err = np.zeros_like(expected)
     both = fin_e & fin_g
     err[both] = np.abs(got[both] - expected[both])
     bound = atol + rtol * np.abs(np.where(fin_e, expected, 0.0))
     bad = bad_nonfinite | (both & (err > bound))
     if not bad.any():
-        return Diff(True, "ok", "ok")
+        return Diff(True, "ok", "ok", (), checked)
     mistakes = tuple(diagnose(got, expected, variants, rtol, atol))
     k = int(bad.sum())
     tolerance = f"rtol={rtol:g}, atol={atol:g}"
@@ -270,13 +321,16 @@ def compare(
             f"got {_fmt(got[idx])} ({tolerance})"
         )
         worst_rel = float(rel[idx])
-        rel_text = f"relative error {worst_rel:.2g}" if np.isfinite(worst_rel) and expected[idx] != 0 else (
-            "a nonzero value where zero is expected"
+        rel_text = (
+            f"relative error {worst_rel:.2g}"
+            if np.isfinite(worst_rel) and expected[idx] != 0
+            else ("a nonzero value where zero is expected")
         )
-        safe = f"values differ at {k} of {n} entries; the worst, at entry {_index(idx)}: {rel_text} ({tolerance})"
+        # the absolute tolerance may be scaled by the expected values: only the relative one is shown
+        safe = f"values differ at {k} of {n} entries; the worst, at entry {_index(idx)}: {rel_text} (rtol={rtol:g})"
     if n <= 24:
         public += f"\n    expected {_fmt_array(expected)}\n    got      {_fmt_array(got)}"
-    return Diff(False, public, safe, mistakes)
+    return Diff(False, public, safe, mistakes, checked)
 
 
 def describe_mistakes(ids: Sequence[str]) -> list[str]:
@@ -302,7 +356,10 @@ DEPENDS: dict[str, dict[str, tuple[str, str, str]]] = {
     },
 }
 
-_NO_FUNCTION = re.compile(r"there is no function named '([^']+)'|no function named '([^']+)' was defined")
+_NO_FUNCTION = re.compile(
+    r"there is no function named '([^']+)'|no function named '([^']+)' was defined"
+    r"|NameError: name '([^']+)' is not defined"
+)
 
 
 def _cause(text: str) -> str:
@@ -327,9 +384,11 @@ def explain_cascade(outcomes: Sequence[Outcome], cell_errors: dict[str, str]) ->
         if m is None:
             out.append(o)
             continue
-        name = m.group(1) or m.group(2)
+        name = m.group(1) or m.group(2) or m.group(3)
         gid = name if name in cell_errors else next(iter(cell_errors))
-        out.append(Outcome(False, None, f"not run: answer cell {gid!r} failed to run: {_cause(cell_errors[gid])}"))
+        out.append(
+            Outcome(False, None, f"not run: answer cell {gid!r} failed to run: {_cause(cell_errors[gid])}")
+        )
     return out
 
 
@@ -382,6 +441,8 @@ def mistake_records(results: Sequence) -> list[dict]:
     for r in results:
         for t in r.tests:
             for m in t.mistakes:
-                rec = records.setdefault((r.exercise_id, m), {"exercise": r.exercise_id, "id": m, "tests": []})
+                rec = records.setdefault(
+                    (r.exercise_id, m), {"exercise": r.exercise_id, "id": m, "tests": []}
+                )
                 rec["tests"].append(t.name)
     return list(records.values())
