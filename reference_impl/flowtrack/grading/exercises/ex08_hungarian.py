@@ -25,6 +25,26 @@ def greedy_pairs(cost: np.ndarray) -> set[tuple[int, int]]:
     return pairs
 
 
+def greedy_trap(rng: np.random.Generator, C: np.ndarray) -> np.ndarray:
+    """``C`` with a 2x2 trap: rows r1 < r2, columns c1, c2 with C[r1, c1] the smallest entry, C[r1, c2]
+    and C[r2, c1] the next smallest, and the rest of row r2 and column c2 far larger.
+
+    Taking the cheapest pair (r1, c1) first (global or row-by-row greedy) leaves r2 and c2 only
+    expensive partners, while the optimum pairs (r1, c2) and (r2, c1).
+    """
+    C = np.array(C, dtype=np.float64)
+    M, N = C.shape
+    r1, r2 = sorted(int(i) for i in rng.choice(M, 2, replace=False))
+    c1, c2 = (int(j) for j in rng.choice(N, 2, replace=False))
+    lo, hi = float(C.min()), float(C.max())
+    C[r2, :] = hi + 100.0
+    C[:, c2] = hi + 100.0
+    C[r1, c1] = lo - 2.0
+    C[r1, c2] = lo - 1.0
+    C[r2, c1] = lo - 1.0
+    return C
+
+
 def row_greedy_pairs(cost: np.ndarray) -> set[tuple[int, int]]:
     """Row by row, each row takes its cheapest free column (the other common greedy)."""
     C = np.asarray(cost, dtype=np.float64)
@@ -136,6 +156,9 @@ def _ex08_hidden(rng):
     mats.append(rng.integers(0, 3, size=(18, 13)).astype(np.float64))  # tall with ties
     mats.append(np.outer(rng.uniform(1, 2, 14), rng.uniform(1, 2, 14)))  # rank one
     mats.append(rng.uniform(0.0, 100.0, size=(30, 30)))
+    # every matrix but the first holds a greedy trap, so a greedy answer fails the same six matrices
+    # for every student (on random matrices alone it failed a varying number: unequal scores)
+    mats = [mats[0]] + [greedy_trap(rng, C) for C in mats[1:]]
     return [("hungarian", (C,), {}, assignment_check(C)) for C in mats]
 
 
