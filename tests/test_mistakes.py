@@ -801,7 +801,9 @@ FAIR = [c for c in CASES if c[0] not in ("brute-force-assignment",)]
 def test_same_code_same_score_for_twenty_students(mistake, ex_id, sources):
     ex = get_exercise(ex_id)
     # public tests have fixed inputs (the same for everyone by construction): only hidden ones vary
-    scores = [sum(r[1] for r in _run(ex_id, sources, student=f"student{i:02d}", hidden=True)) for i in range(20)]
+    scores = [
+        sum(r[1] for r in _run(ex_id, sources, student=f"student{i:02d}", hidden=True)) for i in range(20)
+    ]
     spread = max(scores) - min(scores)
     assert spread <= 0.005 * ex.max_score, (mistake, scores)
 
