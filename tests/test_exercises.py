@@ -42,6 +42,7 @@ EXPECTED_FILES = [
     "ex08_hungarian.ipynb",
     "ex09_track_management.ipynb",
     "ex10_motion_clustering.ipynb",
+    "ex11_concepts.ipynb",
     "ex12_rgbd_data_term.ipynb",
 ]
 
@@ -252,11 +253,16 @@ CHEAT = {
             "    from flowtrack.variational import red_black_sweep as ref\n"
             "    return ref(v.copy(), rhs, c, lam)\n"
         ),
-        "solve_gauss_seidel": (
+        "solve_gauss_seidel": (  # the reference's own red-black sweeps (tol = 0: exactly max_sweeps)
             "def solve_gauss_seidel(a, b, dt, lam, tol=1e-10, max_sweeps=100000):\n"
-            "    import flowtrack.sceneflow as sf\n"
-            "    A, B = a[..., None] * [1, 1, 1], b[..., None] * [1, 1, 1]\n"
-            "    return sf.variational_scene_flow(A, B, dt, lam)[..., 0]\n"
+            "    import numpy as np\n"
+            "    from flowtrack.variational import red_black_sweep as ref, solve_component\n"
+            "    if tol > 0:\n"
+            "        return solve_component(a, b, dt, lam)\n"
+            "    v = np.zeros(np.shape(a))\n"
+            "    for _ in range(max_sweeps):\n"
+            "        v = ref(v, dt * (b - a), np.full(np.shape(a), dt**2), lam)\n"
+            "    return v\n"
         ),
     },
     "ex04_graph_scene_flow": {
@@ -360,6 +366,22 @@ CHEAT = {
             "    return ref(X, grad_i, r_i, grad_d, r_d, PinholeCamera(fx, fy, 0.0, 0.0), w_i, w_d)\n"
         ),
     },
+}
+
+
+WRONG["ex11_concepts"] = {  # Q for [px, py, vx, vy] given for the order [px, vx, py, vy]
+    "q_order": """
+import sympy as sp
+dt, q = sp.symbols("dt q", positive=True)
+G = sp.Matrix([dt**2 / 2, dt])
+return str(sp.kronecker_product(q * G * G.T, sp.eye(2)))
+"""
+}
+# every answer right, but each cell imports the blocked flowtrack.symbolic
+_EX11 = get_exercise("ex11_concepts")
+CHEAT["ex11_concepts"] = {
+    gid: "import flowtrack.symbolic  # blocked\n" + src
+    for gid, src in _answer_sources(_read(_EX11), _EX11).items()
 }
 
 
@@ -522,8 +544,11 @@ def test_hungarian_brute_force_runs_out_of_time():
     # reach of brute force at any limit (12! = 4.8e8 permutations)
     fast = dataclasses.replace(ex, tests=tuple(dataclasses.replace(t, timeout=1.0) for t in ex.tests))
     results = {r[0]: r for r in run_in_process(fast, _namespace(src), student="frank")}
-    assert results["small matrices: 3x3, 2x4, 4x2, 1x1"][1] == 3.0
+    assert results["small matrices: 3x3, 2x4, 4x2, 1x1"][1] == 2.0
+    assert results["a medium matrix: 11x11, where greedy is not optimal"][1] == 0.0
     assert results["random matrices 12x12 to 30x30, with ties, rectangular"][1] == 0.0
+    medium = results["a medium matrix: 11x11, where greedy is not optimal"]
+    assert "mistake brute-force-assignment:" in medium[3]
 
 
 # --------------------------------------------------------------------------------------------------

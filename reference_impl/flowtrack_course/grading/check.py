@@ -34,6 +34,13 @@ def format_report(result: ExerciseResult, hidden_points: float = 0.0) -> str:
     for t in result.tests:
         if not t.passed:
             lines.append(f"{t.name}: {t.message}")
+    seen: list[str] = []
+    for t in result.tests:
+        seen += [m for m in getattr(t, "mistakes", ()) if m not in seen]
+    if seen:
+        from .exercises.feedback import describe_mistakes
+
+        lines += ["", *describe_mistakes(seen), ""]
     lines.append(f"public score: {result.score:g} / {result.max_score:g}")
     if hidden_points:
         lines.append(

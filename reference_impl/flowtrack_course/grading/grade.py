@@ -49,6 +49,15 @@ import numpy as np
 
 from flowtrack._validation import positive_int
 
+from .exercises.feedback import (
+    apply_dependencies,
+    cell_problems,
+    explain_cascade,
+    feedback_lines,
+    mistake_records,
+    mistakes_of,
+    safe_text,
+)
 from .spec import Exercise, GradedTest, Outcome, public_seed, secret_id, student_seed
 
 __all__ = [
@@ -97,6 +106,8 @@ class TestResult:
     max_score: float
     hidden: bool
     message: str
+    safe_message: str = ""
+    mistakes: tuple[str, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -134,7 +145,12 @@ def _zero(test: GradedTest, why: str) -> TestResult:
 
 
 def _score_test(test: GradedTest, outcomes: Sequence[Outcome], scorer) -> tuple[float, str]:
-    """Apply the trusted scorer; a scorer bug or a bad fraction gives 0, never a crash."""
+    """Apply the trusted scorer; a scorer bug or a bad fraction gives 0, never a crash.
+
+    The message is returned as the scorer made it (a
+    :class:`~flowtrack_course.grading.exercises.feedback.Report` carries the hidden-safe text and the
+    mistakes recognised).
+    """
     try:
         fraction, message = scorer(outcomes)
         fraction = float(fraction)
@@ -143,7 +159,7 @@ def _score_test(test: GradedTest, outcomes: Sequence[Outcome], scorer) -> tuple[
     if not math.isfinite(fraction):
         fraction = 0.0
     fraction = min(1.0, max(0.0, fraction))
-    return float(test.points) * fraction, str(message)
+    return float(test.points) * fraction, message if isinstance(message, str) else str(message)
 
 
 def _extract(notebook: Path, grade_ids: Sequence[str]) -> tuple[list[tuple[str, str]], list[str]]:
@@ -258,12 +274,16 @@ def run_exercise(
                 outcomes = [Outcome(False, None, f"sandbox error: {exc}") for _ in calls]
             if len(outcomes) != len(calls):
                 outcomes = [Outcome(False, None, "no result from the sandbox") for _ in calls]
+            outcomes = explain_cascade(outcomes, dict(getattr(box, "cell_errors", {}) or {}))
             score, message = _score_test(t, outcomes, scorer)
-            done[i] = TestResult(t.name, t.grade_id, score, float(t.points), t.hidden, _clip_message(message))
-        result.tests += [done[i] for i in range(len(tests))]
+            done[i] = TestResult(
+                t.name, t.grade_id, score, float(t.points), t.hidden, _clip_message(message),
+                _clip_message(safe_text(message)), mistakes_of(message),
+            )
+        result.tests += apply_dependencies(exercise.id, [done[i] for i in range(len(tests))])
         # known once the child has started (the sandbox starts it lazily on the first run)
-        for gid, err in dict(getattr(box, "cell_errors", {}) or {}).items():
-            result.problems.append(_clip_message(f"cell {gid!r} failed to run: {err}"))
+        errors = dict(getattr(box, "cell_errors", {}) or {})
+        result.problems += [_clip_message(p) for p in cell_problems(errors, exercise.answer_cells)]
     return result
 
 
@@ -394,10 +414,12 @@ def results_json(
         for t in r.tests:
             if t.hidden:
                 output = f"hidden test {t.name}: {_round(t.score):g} / {_round(t.max_score):g}"
+                output += "".join(f"\n{line}" for line in feedback_lines(t, hidden=True))
                 visibility = hidden_visibility
             else:
                 output = t.message
                 output += "".join(f"\nproblem: {p}" for p in r.problems if p != t.message)
+                output += "".join(f"\n{line}" for line in feedback_lines(t, hidden=False, with_message=False))
                 visibility = "visible"
             tests.append(
                 {
@@ -407,7 +429,10 @@ def results_json(
                     "status": "passed" if t.passed else "failed",
                     "output": output,
                     "visibility": visibility,
-                    "extra_data": {"exercise": r.exercise_id, "grade_id": t.grade_id, "hidden": t.hidden},
+                    "extra_data": {
+                        "exercise": r.exercise_id, "grade_id": t.grade_id, "hidden": t.hidden,
+                        "mistakes": list(t.mistakes),
+                    },
                 }
             )
     info = {
@@ -417,6 +442,7 @@ def results_json(
             r.exercise_id: {"score": _round(r.score), "max_score": _round(r.max_score)} for r in results
         },
         "max_score": _round(sum(r.max_score for r in results)),
+        "mistakes": mistake_records(results),
     }
     info.update(extra or {})
     return {
@@ -456,12 +482,30 @@ def feedback_markdown(student: str, r: ExerciseResult) -> str:
         kind = "hidden" if t.hidden else "public"
         mark = "passed" if t.passed else "failed"
         out.append(f"| {t.name} | {kind} | {_round(t.score):g} / {_round(t.max_score):g} | {mark} |")
+    ids: list[str] = []
+    for t in r.tests:
+        ids += [m for m in t.mistakes if m not in ids]
+    if ids:
+        from .exercises.catalogue import mistake_line
+
+        out += ["", "## Mistakes recognised", "", "```text", *[mistake_line(m) for m in ids], "```"]
     public = [t for t in r.tests if not t.hidden]
     if public:
         out += ["", "## Public tests in detail", ""]
         for t in public:
             out += [f"### {t.name}", "", "```text", _fence_safe(t.message), "```", ""]
-    out += ["", "Hidden tests use other inputs and are reported by name and score only.", ""]
+    failed_hidden = [t for t in r.tests if t.hidden and not t.passed]
+    if failed_hidden:
+        out += ["", "## Hidden tests that failed", ""]
+        for t in failed_hidden:
+            text = _fence_safe("\n".join(feedback_lines(t, hidden=True)))
+            out += [f"### {t.name}", "", "```text", text, "```", ""]
+    out += [
+        "",
+        "Hidden tests use other inputs: they say which check failed and why, never their inputs or "
+        "expected values.",
+        "",
+    ]
     return "\n".join(out)
 
 

@@ -32,37 +32,71 @@ MARKER = ".flowtrack-release"
 FORBIDDEN = ("BEGIN SOLUTION", "END SOLUTION", "BEGIN HIDDEN TESTS", "END HIDDEN TESTS", "BEGIN MARK SCHEME")
 
 STUDENT_README = """\
-# flowtrack: lessons and exercises
+# flowtrack: your copy of the course
 
-This folder is your copy of the course: `lessons/` holds the lesson notebooks, `exercises/` the
-graded exercises. Work in Jupyter (`jupyter lab` in this folder).
+This folder holds the course's lessons and its graded exercises:
+
+- `lessons/`: seven lesson notebooks, from the pinhole camera to a multi-object tracker (start with
+  `lessons/README.md`);
+- `exercises/`: eleven exercise notebooks; each one says what to implement, which modules you may
+  import, and how it is graded.
+
+## Install (once)
+
+You need Python 3.11 or newer. In a terminal, in this folder:
+
+```bash
+python3 -m venv .venv
+source .venv/bin/activate          # Windows: .venv\\Scripts\\activate
+python -m pip install "flowtrack[student]"
+```
+
+Your instructor may give you the course package as a folder or a file instead; install it the same
+way, e.g. `python -m pip install "/path/to/flowtrack[student]"`. The `student` extra installs
+JupyterLab and what the exercises and `flowtrack check` need (numpy, scipy, sympy); it leaves out
+open3d (only lessons 3 and 6 use it, for rigid ICP flow: `python -m pip install open3d` if you want
+to run those cells) and the tools that build the course book.
+
+Then start Jupyter with `jupyter lab` and open `lessons/README.md` or an exercise.
 
 ## Doing an exercise
 
 1. Open an exercise notebook in `exercises/`. Read the text and the docstring of each function you
    are asked to write: it gives the shapes of the inputs and of the result.
 2. Replace each `raise NotImplementedError()` with your code. Keep the function names and arguments;
-   only the cells marked as answer cells are graded, so put all your code there. Import only the
-   modules the exercise allows (using the `flowtrack` function you are asked to write scores nothing).
-3. Run the notebook's public test cells: they show what is expected.
+   only the answer cells are graded, so put all your code there (imports included). Import only the
+   modules the exercise allows (calling the `flowtrack` function you are asked to write scores
+   nothing).
+3. Run the notebook's test cells: they show what is expected.
 4. Check your work from a terminal:
 
    ```bash
    flowtrack check exercises/<exercise>.ipynb
    ```
 
-   It runs the public tests in a sandbox exactly as the grader will, prints a table of the tests with
-   what was expected (values, shapes) and your public score, and exits with status 0 when every
-   public test passes.
+   It runs the public tests in a sandbox exactly as the grader will and prints a table of the tests,
+   your public score and, for each failed test, what was expected against what you returned (the
+   worst entry and where it is). When your answer is a mistake the course has seen before, a line
+   `mistake <id>: ...` names it, says why it is wrong and which lesson section explains it. It
+   exits with status 0 when every public test passes.
 
 ## How you are graded
 
 Your instructor grades the notebooks you hand in (same file names) with `flowtrack grade`. The
 public tests are the ones you see; hidden tests check the same functions on other, randomised inputs
-(different for every student) with stated tolerances, with partial credit. Your code runs in a
-separate sandboxed process with limits on time, memory and output; editing the test cells of the
-notebook changes nothing, and code that crashes, loops forever or exhausts memory scores 0 on that
-test only. Your feedback lists the public tests in detail and the hidden tests by name and score.
+(different for every student, of the same difficulty: the same code earns the same score for
+everyone) with stated tolerances, with partial credit. Your code runs in a separate sandboxed
+process with limits on time, memory and output; editing the test cells changes nothing, and code
+that crashes, loops forever or exhausts memory scores 0 on that test only. Your feedback shows the
+public tests in detail; for a failed hidden test it says which check failed and why (wrong values
+at which entries, a wrong shape, a time-out, an exception) without showing its inputs, and names
+the mistakes it recognises.
+
+## The syllabus' problems
+
+Problems 1-5 of the syllabus are posed in the lessons (where each one belongs) and several of them
+are graded in the exercises (exercises 1, 2, 5, 7, 8, 10 and 11). Work them out yourself: the
+worked answers are not part of this copy; your instructor publishes them after the deadline.
 """
 
 
@@ -203,14 +237,11 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
         (tmp / "lessons").mkdir()
         for src in sorted((root / "lessons").glob("*.md")) if (root / "lessons").is_dir() else []:
             if is_jupytext_notebook(src):
-                nb = strip_outputs(read_notebook(src))
-                for cell in nb.cells:
-                    if cell.cell_type == "markdown":
-                        cell.source = _unlink_solutions(cell.source)
+                nb = student_lesson(strip_outputs(read_notebook(src)))
                 nbformat.write(nb, tmp / "lessons" / (src.stem + ".ipynb"))
                 lessons.append(src.stem + ".ipynb")
             elif src.name == "README.md":
-                text = _unlink_solutions(src.read_text(encoding="utf-8"))
+                text = student_lessons_readme(src.read_text(encoding="utf-8"))
                 (tmp / "lessons" / "README.md").write_text(text, encoding="utf-8")
         exercises = []
         (tmp / "exercises").mkdir()
@@ -224,7 +255,7 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
             dest.parent.mkdir(parents=True, exist_ok=True)
             nbformat.write(nb, dest)
             exercises.append(rel.as_posix())
-        problems = scan_bundle(tmp)
+        problems = scan_bundle(tmp) + scan_worked_answers(tmp)
         if problems:
             raise RuntimeError("release: the bundle would leak: " + "; ".join(problems[:10]))
         if out.exists():
@@ -234,3 +265,88 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return {"lessons": lessons, "exercises": exercises, "out": out}
+
+
+# --------------------------------------------------------------------------------------------------
+# the student's lessons (issue 16): worked answers withheld, links that work inside the bundle
+
+#: Tag of a lesson cell holding a worked answer to one of the syllabus' problems (MyST:
+#: ``:tags: [worked-answer]`` in a code cell's options, ``+++ {"tags": ["worked-answer"]}`` before a
+#: markdown cell). The book and the instructors' copy keep these cells; the student bundle does not.
+WORKED_ANSWER_TAG = "worked-answer"
+
+WITHHELD = (
+    "> **Your turn.** The worked answer to this part is not in your copy of the course: work it out "
+    "yourself (the exercise named above grades it). Your instructor publishes the worked answers "
+    "after the deadline."
+)
+
+_LESSON_LINK = re.compile(r"\]\((\.\./lessons/|)(\d\d_[A-Za-z0-9_]+)\.md(#[^)]*)?\)")
+_OUTSIDE_LINK = re.compile(r"\[([^\]]*)\]\((?:\.\./)+(?!lessons/|exercises/)[^)\s]+\)")
+
+
+def bundle_links(markdown: str) -> str:
+    """Links of a lesson's markdown rewritten for the bundle.
+
+    Lesson sources (``02_variational_scene_flow.md``) become the bundle's notebooks
+    (``02_variational_scene_flow.ipynb``); links to files outside ``lessons/`` and ``exercises/``
+    (solutions, the package's source, benchmarks) become their text.
+
+    >>> bundle_links("[lesson 2](02_variational_scene_flow.md#1-the-energy), [Problem 1](../solutions/p1.md)")
+    '[lesson 2](02_variational_scene_flow.ipynb#1-the-energy), Problem 1'
+    """
+    text = _LESSON_LINK.sub(lambda m: f"]({m.group(1)}{m.group(2)}.ipynb{m.group(3) or ''})", markdown)
+    return _OUTSIDE_LINK.sub(r"\1", text)
+
+
+def _tags(cell) -> list:
+    tags = cell.get("metadata", {}).get("tags", [])
+    return list(tags) if isinstance(tags, (list, tuple)) else []
+
+
+def student_lesson(nb):
+    """A lesson for the bundle: worked-answer cells replaced by one note per run of them, links fixed."""
+    import nbformat
+
+    cells = []
+    withheld = False
+    for cell in nb.cells:
+        if WORKED_ANSWER_TAG in _tags(cell):
+            if not withheld:
+                cells.append(nbformat.v4.new_markdown_cell(WITHHELD))
+            withheld = True
+            continue
+        withheld = False
+        if cell.cell_type == "markdown":
+            cell.source = bundle_links(cell.source)
+        cells.append(cell)
+    nb.cells = cells
+    return nb
+
+
+def scan_worked_answers(bundle: str | os.PathLike) -> list[str]:
+    """Lessons of a bundle that still hold a worked-answer cell (a problem for the release)."""
+    problems = []
+    for p in sorted(Path(bundle).rglob("*.ipynb")):
+        nb = json.loads(p.read_text(encoding="utf-8"))
+        for i, cell in enumerate(nb.get("cells", [])):
+            if WORKED_ANSWER_TAG in _tags(cell):
+                problems.append(f"{p.relative_to(bundle)}: cell {i} is a worked answer")
+    return problems
+
+
+def student_lessons_readme(text: str) -> str:
+    """The lessons' README for students: the table of lessons (links to the bundle's notebooks) and
+    what to do, without the instructors' notes (jupytext sources, solutions, headless runs)."""
+    table = [ln for ln in text.splitlines() if ln.startswith("|")]
+    head = [
+        "# Lessons",
+        "",
+        "Seven lesson notebooks take you from a pinhole camera to a multi-object tracker for robot",
+        "manipulation. Every derivation is done in sympy and checked against the course's reference",
+        "implementation `flowtrack` inside the notebook. Open them in Jupyter (`jupyter lab`) and run",
+        "them from the top. Where a lesson poses one of the syllabus' problems, work it out before you",
+        "read on; the exercise that grades it is named there.",
+        "",
+    ]
+    return "\n".join(head + [bundle_links(ln) for ln in table]) + "\n"

@@ -12,6 +12,10 @@ Examples
 >>> check = array_check(np.array([1.0, 2.0]))
 >>> check(Outcome(True, [1.0, 2.0])), check(Outcome(True, [1.0]))[0]
 ((1.0, 'ok'), 0.0)
+>>> print(check(Outcome(True, [1.0, -2.0]))[1])
+values differ at 1 of 2 entries; worst at [1]: expected 2, got -2 (rtol=1e-06, atol=1e-09)
+    expected [1., 2.]
+    got      [ 1., -2.]
 """
 
 from __future__ import annotations
@@ -22,10 +26,13 @@ from typing import Any
 
 import numpy as np
 
-from ..spec import Call, GradedTest, Outcome, Scorer, compare_arrays
+from ..spec import Call, GradedTest, Outcome, Scorer
+from .feedback import Report, Variant, checked_of, compare, consistent_mistakes, safe_error, safe_text
 
 __all__ = [
     "Check",
+    "Report",
+    "Variant",
     "array_check",
     "call_label",
     "graded_test",
@@ -38,39 +45,64 @@ __all__ = [
 Check = Callable[[Outcome], tuple[float, str]]
 
 
-def per_call(labels: Sequence[str], checks: Sequence[Check]) -> Scorer:
-    """A scorer awarding the mean over calls of each call's check fraction (in [0, 1])."""
+def per_call(
+    labels: Sequence[str], checks: Sequence[Check], functions: Sequence[str] | None = None
+) -> Scorer:
+    """A scorer awarding the mean over calls of each call's check fraction (in [0, 1]).
+
+    Its message is a :class:`~flowtrack_course.grading.exercises.feedback.Report`: the public text names
+    each failing call with its arguments (``labels``), the hidden-safe text only by its number and
+    function (a hidden call's arguments are hidden inputs), and the mistakes recognised in any call.
+    """
     labels = list(labels)
     checks = list(checks)
+    functions = list(functions) if functions is not None else [lab.split("(")[0] for lab in labels]
 
     def scorer(outcomes: Sequence[Outcome]) -> tuple[float, str]:
         if len(outcomes) != len(checks):
-            return 0.0, f"expected {len(checks)} results, got {len(outcomes)}"
+            msg = f"expected {len(checks)} results, got {len(outcomes)}"
+            return 0.0, Report(msg, msg)
         fractions = []
         problems = []
-        for label, check, outcome in zip(labels, checks, outcomes):
+        safe_problems = []
+        messages = []
+        for k, (label, fn, check, outcome) in enumerate(zip(labels, functions, checks, outcomes)):
             try:
                 f, msg = check(outcome)
             except Exception as exc:  # a trusted check must never crash the grader on odd data
                 f, msg = 0.0, f"could not check the result ({type(exc).__name__})"
             f = float(min(max(f, 0.0), 1.0)) if math.isfinite(f) else 0.0
             fractions.append(f)
+            messages.append(msg)
             if f < 1.0:
                 problems.append(f"{label}: {msg}")
+                safe_problems.append(f"call {k + 1} of {len(checks)} ({fn}): {safe_text(msg)}")
         score = sum(fractions) / len(fractions) if fractions else 0.0
         if score >= 1.0:
-            return 1.0, f"all {len(checks)} checks passed"
+            return 1.0, Report(f"all {len(checks)} checks passed")
+        mistakes = consistent_mistakes(messages, [f >= 1.0 for f in fractions])
         n_ok = sum(f >= 1.0 for f in fractions)
-        shown = "; ".join(problems[:3]) + (" ..." if len(problems) > 3 else "")
-        return score, f"{n_ok}/{len(checks)} checks passed. {shown}"
+        more = " ..." if len(problems) > 3 else ""
+        head = f"{n_ok}/{len(checks)} checks passed. "
+        public = head + "; ".join(problems[:3]) + more
+        safe = head + "; ".join(safe_problems[:3]) + more
+        return score, Report(public, safe, mistakes)
 
     return scorer
 
 
-def array_check(expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9) -> Check:
+def array_check(
+    expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9, variants: Sequence[Variant] = ()
+) -> Check:
+    """All or nothing: the result equals ``expected`` within the tolerances.
+
+    ``variants`` are the catalogued wrong answers on the same inputs (see
+    :mod:`~flowtrack_course.grading.exercises.feedback`); the message names the one the result equals.
+    """
+
     def check(outcome: Outcome) -> tuple[float, str]:
-        ok, msg = compare_arrays(outcome, expected, rtol=rtol, atol=atol)
-        return (1.0 if ok else 0.0), msg
+        d = compare(outcome, expected, rtol=rtol, atol=atol, variants=variants)
+        return (1.0 if d.ok else 0.0), d.report()
 
     return check
 
@@ -80,18 +112,28 @@ def tuple_check(parts: Sequence[Check], names: Sequence[str]) -> Check:
 
     def check(outcome: Outcome) -> tuple[float, str]:
         if not outcome.ok:
-            return 0.0, outcome.error or "the call failed"
+            err = outcome.error or "the call failed"
+            return 0.0, Report(err, safe_error(err))
         value = outcome.value
         if type(value) not in (list, tuple) or len(value) != len(parts):
-            return 0.0, f"expected a tuple ({', '.join(names)}) of {len(parts)} items"
+            msg = f"expected a tuple ({', '.join(names)}) of {len(parts)} items"
+            return 0.0, Report(msg, msg)
         total = 0.0
         msgs = []
+        safe = []
+        messages = []
+        oks = []
         for name, part, item in zip(names, parts, value):
             f, msg = part(Outcome(True, item))
             total += f
+            messages.append(msg)
+            oks.append(f >= 1.0)
             if f < 1.0:
                 msgs.append(f"{name}: {msg}")
-        return total / len(parts), "; ".join(msgs) or "ok"
+                safe.append(f"{name}: {safe_text(msg)}")
+        checked = frozenset().union(*(checked_of(m) for m in messages))
+        mistakes = consistent_mistakes(messages, oks)
+        return total / len(parts), Report("; ".join(msgs) or "ok", "; ".join(safe) or "ok", mistakes, checked)
 
     return check
 
@@ -116,7 +158,7 @@ def _calls_and_checks(
 ) -> tuple[list[Call], Scorer]:
     calls = [Call(fn, args, kw) for fn, args, kw, _ in entries]
     labels = [call_label(fn, args, kw) for fn, args, kw, _ in entries]
-    return calls, per_call(labels, [c for *_, c in entries])
+    return calls, per_call(labels, [c for *_, c in entries], [fn for fn, *_ in entries])
 
 
 def graded_test(name: str, grade_id: str, points: float, hidden: bool, timeout: float = 10.0):

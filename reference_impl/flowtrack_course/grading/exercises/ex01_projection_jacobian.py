@@ -9,8 +9,31 @@ import numpy as np
 
 from ..spec import Exercise, Outcome, as_float_array, compare_arrays
 from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+from .feedback import Report, Variant, compare
 
 _EX01_X = np.array([[1.0, 2.0, 4.0], [0.0, 0.0, 1.0], [-0.5, 0.25, 2.0]])
+
+
+def _project_variants(X, fx, fy, cx, cy) -> list[Variant]:
+    from flowtrack.camera import project
+
+    return [Variant("projection-missing-principal-point", project(X, pinhole(fx, fy)))]
+
+
+def _jacobian_variants(X, fx, fy) -> list[Variant]:
+    """The catalogued wrong Jacobians on these points (trusted, computed here)."""
+    from flowtrack.camera import projection_jacobian
+
+    J = projection_jacobian(X, pinhole(fx, fy))
+    out = [Variant("jacobian-fx-fy-swapped", projection_jacobian(X, pinhole(fy, fx)))]
+    for rows in ((0,), (1,), (0, 1)):
+        W = J.copy()
+        W[:, rows, 2] *= -1.0
+        out.append(Variant("jacobian-sign", W))
+    W = J.copy()
+    W[:, :, 2] *= X[:, 2:3]
+    out.append(Variant("jacobian-z-not-squared", W))
+    return out
 
 
 @graded_test("project: three points", "test_project", 1.0, hidden=False)
@@ -22,7 +45,10 @@ def _ex01_project_public(rng):
             "project",
             (_EX01_X, 100.0, 100.0, 50.0, 40.0),
             {},
-            array_check(project(_EX01_X, pinhole(100, 100, 50, 40))),
+            array_check(
+                project(_EX01_X, pinhole(100, 100, 50, 40)),
+                variants=_project_variants(_EX01_X, 100.0, 100.0, 50.0, 40.0),
+            ),
         )
     ]
 
@@ -36,20 +62,23 @@ def _ex01_project_hidden(rng):
         X = points_in_front(rng, n)
         fx, fy = (float(v) for v in rng.uniform(200.0, 800.0, 2))
         cx, cy = (float(v) for v in rng.uniform(100.0, 400.0, 2))
-        out.append(("project", (X, fx, fy, cx, cy), {}, array_check(project(X, pinhole(fx, fy, cx, cy)))))
+        check = array_check(project(X, pinhole(fx, fy, cx, cy)), variants=_project_variants(X, fx, fy, cx, cy))
+        out.append(("project", (X, fx, fy, cx, cy), {}, check))
     return out
 
 
-def _jacobian_check(expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9) -> Check:
+def _jacobian_check(
+    expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9, variants: Sequence[Variant] = ()
+) -> Check:
     """Per-entry credit: the share of the six Jacobian entries right at every point."""
 
     def check(outcome: Outcome) -> tuple[float, str]:
-        ok, msg = compare_arrays(outcome, expected, rtol=rtol, atol=atol)
-        if ok:
+        d = compare(outcome, expected, rtol=rtol, atol=atol, variants=variants)
+        if d.ok:
             return 1.0, "ok"
         got = as_float_array(outcome.value, expected.shape) if outcome.ok else None
         if got is None:
-            return 0.0, msg
+            return 0.0, d.report()
         good = [
             (i, j)
             for i in range(2)
@@ -57,17 +86,22 @@ def _jacobian_check(expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9
             if np.allclose(got[:, i, j], expected[:, i, j], rtol=rtol, atol=atol)
         ]
         wrong = [f"J[:, {i}, {j}]" for i in range(2) for j in range(3) if (i, j) not in good]
-        return len(good) / 6.0, f"wrong entries {', '.join(wrong)}"
+        head = f"wrong entries {', '.join(wrong)}: "
+        return len(good) / 6.0, Report(head + d.public, head + d.safe, d.mistakes, d.checked)
 
     return check
 
 
-@graded_test("Jacobian: three points", "test_jacobian", 2.0, hidden=False)
+@graded_test("Jacobian: three points, fx = fy and fx != fy", "test_jacobian", 2.0, hidden=False)
 def _ex01_jac_public(rng):
     from flowtrack.camera import projection_jacobian
 
-    J = projection_jacobian(_EX01_X, pinhole(100.0, 100.0))
-    return [("projection_jacobian", (_EX01_X, 100.0, 100.0), {}, _jacobian_check(J))]
+    out = []
+    for fx, fy in ((100.0, 100.0), (100.0, 150.0)):  # fx != fy: a swap of fx and fy shows
+        J = projection_jacobian(_EX01_X, pinhole(fx, fy))
+        check = _jacobian_check(J, variants=_jacobian_variants(_EX01_X, fx, fy))
+        out.append(("projection_jacobian", (_EX01_X, fx, fy), {}, check))
+    return out
 
 
 @graded_test("Jacobian: random points and focal lengths", "test_jacobian", 5.0, hidden=True)
@@ -78,9 +112,8 @@ def _ex01_jac_hidden(rng):
     for n in (1, 7, 30):
         X = points_in_front(rng, n)
         fx, fy = (float(v) for v in rng.uniform(200.0, 800.0, 2))
-        out.append(
-            ("projection_jacobian", (X, fx, fy), {}, _jacobian_check(projection_jacobian(X, pinhole(fx, fy))))
-        )
+        check = _jacobian_check(projection_jacobian(X, pinhole(fx, fy)), variants=_jacobian_variants(X, fx, fy))
+        out.append(("projection_jacobian", (X, fx, fy), {}, check))
     return out
 
 

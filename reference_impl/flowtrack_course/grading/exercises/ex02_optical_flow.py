@@ -9,6 +9,7 @@ import numpy as np
 
 from ..spec import Exercise, Outcome, as_float_array, compare_arrays
 from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+from .feedback import Variant
 
 _EX02_X = np.array([[0.0, 0.0, 2.0], [1.0, -1.0, 4.0]])
 _EX02_V = np.array([[1.0, 0.0, 0.0], [0.0, 0.5, -1.0]])
@@ -20,6 +21,24 @@ def _ex02_expected(X, V, dt, fx, fy):
     return optical_flow_from_scene_flow(X, V, dt, pinhole(fx, fy))
 
 
+def _ex02_check(X, V, dt, fx, fy, **tol) -> Check:
+    """The flow, recognising the catalogued wrong answers (computed here from the same inputs)."""
+    from flowtrack.camera import projection_jacobian
+
+    J = projection_jacobian(X, pinhole(fx, fy))
+    Jsign = J.copy()
+    Jsign[:, :, 2] *= -1.0
+    Jflat = J.copy()
+    Jflat[:, :, 2] = 0.0
+    variants = [
+        Variant("missing-dt", np.einsum("nij,nj->ni", J, V)),
+        Variant("flow-ignores-depth-motion", np.einsum("nij,nj->ni", Jflat, V) * dt),
+        Variant("jacobian-sign", np.einsum("nij,nj->ni", Jsign, V) * dt),
+        Variant("jacobian-fx-fy-swapped", _ex02_expected(X, V, dt, fy, fx)),
+    ]
+    return array_check(_ex02_expected(X, V, dt, fx, fy), variants=variants, **tol)
+
+
 @graded_test("optical flow: two points", "test_optical_flow", 3.0, hidden=False)
 def _ex02_public(rng):
     return [
@@ -27,13 +46,13 @@ def _ex02_public(rng):
             "optical_flow",
             (_EX02_X, _EX02_V, 0.1, 500.0, 500.0),
             {},
-            array_check(_ex02_expected(_EX02_X, _EX02_V, 0.1, 500, 500)),
+            _ex02_check(_EX02_X, _EX02_V, 0.1, 500.0, 500.0),
         ),
         (
             "optical_flow",
             (_EX02_X, _EX02_V, 1.0, 100.0, 200.0),
             {},
-            array_check(_ex02_expected(_EX02_X, _EX02_V, 1.0, 100, 200)),
+            _ex02_check(_EX02_X, _EX02_V, 1.0, 100.0, 200.0),
         ),
     ]
 
@@ -41,11 +60,12 @@ def _ex02_public(rng):
 @graded_test("optical flow: random points, velocities and time steps", "test_optical_flow", 7.0, hidden=True)
 def _ex02_hidden(rng):
     out = []
-    for n, dt in ((1, 1.0), (6, float(rng.uniform(0.01, 0.2))), (25, float(rng.uniform(0.5, 2.0)))):
+    # dt != 1 in every case: a forgotten time step shows in each of them (the same score for everyone)
+    for n, dt in ((1, float(rng.uniform(0.3, 0.7))), (6, float(rng.uniform(0.01, 0.2))), (25, float(rng.uniform(1.5, 2.0)))):
         X = points_in_front(rng, n)
         V = rng.normal(size=(n, 3))
         fx, fy = (float(v) for v in rng.uniform(200.0, 800.0, 2))
-        out.append(("optical_flow", (X, V, dt, fx, fy), {}, array_check(_ex02_expected(X, V, dt, fx, fy))))
+        out.append(("optical_flow", (X, V, dt, fx, fy), {}, _ex02_check(X, V, dt, fx, fy)))
     # motion along the viewing ray produces no optical flow (first order)
     X = points_in_front(rng, 5)
     V = X * rng.uniform(-2.0, 2.0, size=(5, 1))

@@ -9,11 +9,35 @@ import numpy as np
 
 from ..spec import Exercise, Outcome, as_float_array, compare_arrays
 from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+from .feedback import Variant
 
 def _ex04_L(P, k, sigma):
     from flowtrack.sceneflow import graph_laplacian, knn_graph
 
     return graph_laplacian(knn_graph(P, k=k, sigma=sigma)).toarray()
+
+
+def knn_laplacian_variant(P, k, sigma, *, symmetrise=True, sigma_power=2) -> np.ndarray:
+    """The kNN Laplacian written out here, with the catalogued mistakes as options (dense, small N)."""
+    P = np.asarray(P, dtype=np.float64)
+    n = P.shape[0]
+    d2 = np.sum((P[:, None, :] - P[None, :, :]) ** 2, axis=2)
+    np.fill_diagonal(d2, np.inf)
+    nearest = np.argsort(d2, axis=1, kind="stable")[:, :k]
+    A = np.zeros((n, n), dtype=bool)
+    A[np.repeat(np.arange(n), k), nearest.ravel()] = True
+    if symmetrise:
+        A = A | A.T
+    W = np.where(A, np.exp(-np.where(A, d2, 0.0) / sigma**sigma_power), 0.0)
+    return np.diag(W.sum(axis=1)) - W
+
+
+def _ex04_L_check(P, k, sigma) -> Check:
+    variants = [
+        Variant("knn-not-symmetrised", knn_laplacian_variant(P, k, sigma, symmetrise=False)),
+        Variant("affinity-sigma-not-squared", knn_laplacian_variant(P, k, sigma, sigma_power=1)),
+    ]
+    return array_check(_ex04_L(P, k, sigma), variants=variants)
 
 
 def _ex04_flow(P, Y, dt, lam, k, sigma):
@@ -29,8 +53,8 @@ _EX04_Y = _EX04_P + np.array([[0.1, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.2, 0.0],
 @graded_test("Laplacian: four points", "test_laplacian", 2.0, hidden=False)
 def _ex04_L_public(rng):
     return [
-        ("knn_laplacian", (_EX04_P, 1, 1.0), {}, array_check(_ex04_L(_EX04_P, 1, 1.0))),
-        ("knn_laplacian", (_EX04_P, 2, 2.0), {}, array_check(_ex04_L(_EX04_P, 2, 2.0))),
+        ("knn_laplacian", (_EX04_P, 1, 1.0), {}, _ex04_L_check(_EX04_P, 1, 1.0)),
+        ("knn_laplacian", (_EX04_P, 2, 2.0), {}, _ex04_L_check(_EX04_P, 2, 2.0)),
     ]
 
 
@@ -40,7 +64,7 @@ def _ex04_L_hidden(rng):
     for n, k in ((6, 5), (12, 2), (30, 4), (40, 6)):
         P = rng.normal(size=(n, 3))
         sigma = float(rng.uniform(0.3, 1.5))
-        out.append(("knn_laplacian", (P, k, sigma), {}, array_check(_ex04_L(P, k, sigma))))
+        out.append(("knn_laplacian", (P, k, sigma), {}, _ex04_L_check(P, k, sigma)))
     return out
 
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..spec import Exercise, Outcome, as_float_array, compare_arrays
 from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+from .feedback import Report, Variant, compare, safe_error
 
 def _ex05_F(dt):
     from flowtrack.kalman import constant_velocity_model
@@ -34,22 +35,41 @@ def _ex05_F_hidden(rng):
     ]
 
 
+def _ex05_Q_variants(dt: float, q: float) -> list[Variant]:
+    g = np.array([dt**2 / 2.0, dt])
+    q1d = np.outer(g, g)
+    cont = np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+    return [
+        Variant("q-block-diagonal", q * np.kron(np.eye(2), q1d)),
+        Variant("q-continuous-white-noise", q * np.kron(cont, np.eye(2))),
+        Variant("q-missing-q", np.kron(q1d, np.eye(2))),
+    ]
+
+
 def _ex05_Q_properties(dt: float, q: float) -> Check:
     """The public test only checks what the visible asserts check: shape, symmetry, Q[0,0], Q[2,0]."""
     expected = _ex05_Q(dt, q)
+    variants = _ex05_Q_variants(dt, q)
 
     def check(outcome: Outcome) -> tuple[float, str]:
         if not outcome.ok:
-            return 0.0, outcome.error or "the call failed"
+            return 0.0, Report(outcome.error or "the call failed", safe_error(outcome.error))
         got = as_float_array(outcome.value, (4, 4))
         if got is None:
-            return 0.0, "expected an array of shape (4, 4)"
+            return 0.0, Report("expected an array of shape (4, 4)")
+        full = compare(outcome, expected, rtol=1e-9, atol=1e-12, variants=variants)
         if not np.allclose(got, got.T, rtol=1e-9, atol=1e-12):
-            return 0.0, "Q is not symmetric"
+            return 0.0, Report("Q is not symmetric", mistakes=full.mistakes, checked=full.checked)
         for i, j in ((0, 0), (2, 0)):
             if not np.isclose(got[i, j], expected[i, j], rtol=1e-9, atol=1e-12):
-                return 0.0, f"Q[{i}, {j}] is wrong"
-        return 1.0, "ok"
+                what = {(0, 0): "var(px)", (2, 0): "cov(vx, px)"}[(i, j)]
+                return 0.0, Report(
+                    f"Q[{i}, {j}] = {what} is wrong: expected {expected[i, j]:.6g}, got {got[i, j]:.6g}",
+                    mistakes=full.mistakes,
+                    checked=full.checked,
+                )
+        # what the visible asserts check is right; the mistakes still show when the rest is wrong
+        return 1.0, Report("ok", mistakes=full.mistakes, checked=full.checked)
 
     return check
 
@@ -64,7 +84,7 @@ def _ex05_Q_hidden(rng):
     # Q1d kron I2 and the syllabus' blkdiag(Q1d, Q1d) differ for every dt, q > 0
     out = []
     for dt, q in zip(rng.uniform(0.01, 2.0, 3).tolist(), rng.uniform(0.1, 10.0, 3).tolist()):
-        out.append(("cv_process_noise", (dt, q), {}, array_check(_ex05_Q(dt, q))))
+        out.append(("cv_process_noise", (dt, q), {}, array_check(_ex05_Q(dt, q), variants=_ex05_Q_variants(dt, q))))
     return out
 
 

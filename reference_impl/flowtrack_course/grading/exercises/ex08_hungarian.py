@@ -9,19 +9,80 @@ import numpy as np
 
 from ..spec import Exercise, Outcome, as_float_array, compare_arrays
 from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+from .feedback import Report, safe_error
+
+def greedy_pairs(cost: np.ndarray) -> set[tuple[int, int]]:
+    """The greedy assignment: the cheapest remaining pair first (ties: lowest row, then column)."""
+    C = np.asarray(cost, dtype=np.float64)
+    order = np.lexsort((np.tile(np.arange(C.shape[1]), C.shape[0]), np.repeat(np.arange(C.shape[0]), C.shape[1]), C.ravel()))
+    rows, cols, pairs = set(), set(), set()
+    for flat in order:
+        i, j = divmod(int(flat), C.shape[1])
+        if i not in rows and j not in cols:
+            rows.add(i)
+            cols.add(j)
+            pairs.add((i, j))
+    return pairs
+
+
+def greedy_trap(rng: np.random.Generator, C: np.ndarray) -> np.ndarray:
+    """``C`` with a 2x2 trap: rows r1 < r2, columns c1, c2 with C[r1, c1] the smallest entry, C[r1, c2]
+    and C[r2, c1] the next smallest, and the rest of row r2 and column c2 far larger.
+
+    Taking the cheapest pair (r1, c1) first (global or row-by-row greedy) leaves r2 and c2 only
+    expensive partners, while the optimum pairs (r1, c2) and (r2, c1).
+    """
+    C = np.array(C, dtype=np.float64)
+    M, N = C.shape
+    r1, r2 = sorted(int(i) for i in rng.choice(M, 2, replace=False))
+    c1, c2 = (int(j) for j in rng.choice(N, 2, replace=False))
+    lo, hi = float(C.min()), float(C.max())
+    C[r2, :] = hi + 100.0
+    C[:, c2] = hi + 100.0
+    C[r1, c1] = lo - 2.0
+    C[r1, c2] = lo - 1.0
+    C[r2, c1] = lo - 1.0
+    return C
+
+
+def row_greedy_pairs(cost: np.ndarray) -> set[tuple[int, int]]:
+    """Row by row, each row takes its cheapest free column (the other common greedy)."""
+    C = np.asarray(cost, dtype=np.float64)
+    transposed = C.shape[0] > C.shape[1]
+    if transposed:
+        C = C.T
+    used, pairs = set(), set()
+    for i in range(C.shape[0]):
+        j = min((j for j in range(C.shape[1]) if j not in used), key=lambda j: (C[i, j], j))
+        used.add(j)
+        pairs.add((j, i) if transposed else (i, j))
+    return pairs
+
 
 def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
-    """Valid min(M, N) pairs whose total cost is scipy's optimum (trusted ``linear_sum_assignment``)."""
+    """Valid min(M, N) pairs whose total cost is scipy's optimum (trusted ``linear_sum_assignment``).
+
+    A valid but worse assignment that is the greedy one (``greedy-assignment``) or a maximal one
+    (``assignment-maximises``) is named; a time-out on a matrix of 10 rows or more is named
+    ``brute-force-assignment`` (trying all n! permutations).
+    """
     from scipy.optimize import linear_sum_assignment
 
     r, c = linear_sum_assignment(cost)
     best = float(cost[r, c].sum())
+    rmax, cmax = linear_sum_assignment(cost, maximize=True)
+    worst = float(cost[rmax, cmax].sum())
+    greedy = [greedy_pairs(cost), row_greedy_pairs(cost)]
     M, N = cost.shape
     K = min(M, N)
+    visible = [m for m, total in (("greedy-assignment", min(sum(cost[i, j] for i, j in g) for g in greedy)),
+                                  ("assignment-maximises", worst)) if total > best + rtol * max(1.0, abs(best))]
 
     def check(outcome: Outcome) -> tuple[float, str]:
         if not outcome.ok:
-            return 0.0, outcome.error or "the call failed"
+            err = outcome.error or "the call failed"
+            mistakes = ["brute-force-assignment"] if "timed out" in err and min(M, N) >= 10 else []
+            return 0.0, Report(err, safe_error(err), mistakes)
         pairs = as_float_array(outcome.value)
         if pairs is None or (pairs.size == 0 and K == 0):
             return (1.0, "ok") if pairs is not None else (0.0, "the result is not an array of index pairs")
@@ -36,9 +97,21 @@ def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
         if len(set(rows.tolist())) != K or len(set(cols.tolist())) != K:
             return 0.0, "a row or a column is used twice"
         total = float(cost[rows, cols].sum())
-        if abs(total - best) <= rtol * max(1.0, abs(best)):
-            return 1.0, "ok"
-        return 0.0, f"a valid assignment but not a minimal one (total {total:.6g}, the minimum is {best:.6g})"
+        tol = rtol * max(1.0, abs(best))
+        if abs(total - best) <= tol:
+            return 1.0, Report("ok", checked=visible)
+        mistakes = []
+        if set(zip(rows.tolist(), cols.tolist())) in greedy:
+            mistakes.append("greedy-assignment")
+        elif abs(total - worst) <= rtol * max(1.0, abs(worst)):
+            mistakes.append("assignment-maximises")
+        gap = (total - best) / max(abs(best), 1e-12)
+        return 0.0, Report(
+            f"a valid assignment but not a minimal one (total {total:.6g}, the minimum is {best:.6g})",
+            f"a valid assignment but not a minimal one (its total exceeds the minimum by {gap:.2g} of it)",
+            mistakes,
+            visible,
+        )
 
     return check
 
@@ -47,10 +120,23 @@ _EX08_C = np.array([[4.0, 1.0, 3.0], [2.0, 0.0, 5.0], [3.0, 2.0, 2.0]])
 _EX08_RECT = np.array([[10.0, 1.0, 7.0, 3.0], [2.0, 8.0, 9.0, 4.0]])
 
 
-@graded_test("small matrices: 3x3, 2x4, 4x2, 1x1", "test_small", 3.0, hidden=False)
+@graded_test("small matrices: 3x3, 2x4, 4x2, 1x1", "test_small", 2.0, hidden=False)
 def _ex08_public(rng):
     mats = [_EX08_C, _EX08_RECT, _EX08_RECT.T.copy(), np.array([[7.0]])]
     return [("hungarian", (C,), {}, assignment_check(C)) for C in mats]
+
+
+def medium_matrix() -> np.ndarray:
+    """The public 11x11 matrix: the greedy assignment is not minimal, and 11! = 4e7 permutations do
+    not fit in the time limit (tests/test_mistakes.py checks both)."""
+    rng = np.random.default_rng(20261201)
+    return np.round(rng.uniform(0.0, 10.0, size=(11, 11)), 2)
+
+
+@graded_test("a medium matrix: 11x11, where greedy is not optimal", "test_small", 1.0, hidden=False, timeout=5.0)
+def _ex08_medium(rng):
+    C = medium_matrix()
+    return [("hungarian", (C,), {}, assignment_check(C))]
 
 
 @graded_test(
@@ -70,6 +156,9 @@ def _ex08_hidden(rng):
     mats.append(rng.integers(0, 3, size=(18, 13)).astype(np.float64))  # tall with ties
     mats.append(np.outer(rng.uniform(1, 2, 14), rng.uniform(1, 2, 14)))  # rank one
     mats.append(rng.uniform(0.0, 100.0, size=(30, 30)))
+    # every matrix but the first holds a greedy trap, so a greedy answer fails the same six matrices
+    # for every student (on random matrices alone it failed a varying number: unequal scores)
+    mats = [mats[0]] + [greedy_trap(rng, C) for C in mats[1:]]
     return [("hungarian", (C,), {}, assignment_check(C)) for C in mats]
 
 
@@ -86,5 +175,5 @@ EXERCISE = Exercise(
         "scipy.sparse.csgraph",
     ),
     allowed=('numpy',),
-    tests=(_ex08_public, _ex08_hidden),
+    tests=(_ex08_public, _ex08_medium, _ex08_hidden),
 )

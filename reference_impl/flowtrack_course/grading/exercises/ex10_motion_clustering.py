@@ -9,6 +9,7 @@ import numpy as np
 
 from ..spec import Exercise, Outcome, as_float_array, compare_arrays
 from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
+from .feedback import Report
 
 def _ex10_expected(P, V, radius, sigma_v, min_speed):
     from flowtrack.clustering import cluster_motion, tracks_from_clusters
@@ -27,11 +28,39 @@ def _ex10_expected(P, V, radius, sigma_v, min_speed):
     return cents, vels, sizes
 
 
-def _clusters_check(cents: np.ndarray, vels: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9) -> Check:
+def _same_clusters(gc, gv, cents, vels, rtol=1e-6, atol=1e-9) -> bool:
+    from scipy.optimize import linear_sum_assignment
+
+    if gc.shape != cents.shape or gv.shape != vels.shape:
+        return False
+    if cents.shape[0] == 0:
+        return True
+    cost = np.linalg.norm(gc[:, None, :] - cents[None], axis=2) + np.linalg.norm(gv[:, None, :] - vels[None], axis=2)
+    r, c = linear_sum_assignment(cost)
+    return bool(np.allclose(gc[r], cents[c], rtol=rtol, atol=atol) and np.allclose(gv[r], vels[c], rtol=rtol, atol=atol))
+
+
+def _ex10_check(P, V, radius, sigma_v, min_speed) -> Check:
+    c, v, _ = _ex10_expected(P, V, radius, sigma_v, min_speed)
+    variants = {
+        "clusters-by-position-only": _ex10_expected(P, V, radius, 1e12, min_speed)[:2],
+        "static-points-kept": _ex10_expected(P, V, radius, sigma_v, 0.0)[:2],
+    }
+    variants = {k: w for k, w in variants.items() if not _same_clusters(w[0], w[1], c, v)}
+    return _clusters_check(c, v, variants=variants)
+
+
+def _clusters_check(
+    cents: np.ndarray, vels: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9, variants: dict | None = None
+) -> Check:
     """Same set of (centroid, velocity) pairs as the reference, in any order."""
     from scipy.optimize import linear_sum_assignment
 
     K, D = cents.shape
+    variants = variants or {}
+
+    def named(gc, gv) -> list[str]:
+        return [k for k, (wc, wv) in variants.items() if _same_clusters(gc, gv, wc, wv, rtol, atol)]
 
     def check(outcome: Outcome) -> tuple[float, str]:
         if not outcome.ok:
@@ -46,7 +75,8 @@ def _clusters_check(cents: np.ndarray, vels: np.ndarray, rtol: float = 1e-6, ato
         if K == 0:
             return (1.0, "ok") if gc.size == 0 and gv.size == 0 else (0.0, "expected no clusters")
         if gc.shape != (K, D) or gv.shape != (K, D):
-            return 0.0, f"expected {K} clusters: arrays of shape ({K}, {D}), got {gc.shape} and {gv.shape}"
+            msg = f"expected {K} clusters: arrays of shape ({K}, {D}), got {gc.shape} and {gv.shape}"
+            return 0.0, Report(msg, msg, named(gc, gv) if gc.ndim == 2 and gv.ndim == 2 else (), variants)
         if not (np.isfinite(gc).all() and np.isfinite(gv).all()):
             return 0.0, "NaN or inf in the result"
         cost = np.linalg.norm(gc[:, None, :] - cents[None], axis=2) + np.linalg.norm(
@@ -56,10 +86,9 @@ def _clusters_check(cents: np.ndarray, vels: np.ndarray, rtol: float = 1e-6, ato
         ok_c = np.allclose(gc[r], cents[c], rtol=rtol, atol=atol)
         ok_v = np.allclose(gv[r], vels[c], rtol=rtol, atol=atol)
         if ok_c and ok_v:
-            return 1.0, "ok"
-        return 0.0, "the right number of clusters, but " + (
-            "centroids" if not ok_c else "velocities"
-        ) + " differ"
+            return 1.0, Report("ok", checked=variants)
+        msg = "the right number of clusters, but " + ("centroids" if not ok_c else "velocities") + " differ"
+        return 0.0, Report(msg, msg, named(gc, gv), variants)
 
     return check
 
@@ -77,8 +106,7 @@ def _ex10_public(rng):
     P, V = _ex10_public_data()
     out = []
     for radius, sigma_v, min_speed in ((0.15, 0.5, 0.1), (0.15, 2.0, 0.1), (0.15, 0.5, 0.0)):
-        c, v, _ = _ex10_expected(P, V, radius, sigma_v, min_speed)
-        out.append(("cluster_tracks", (P, V, radius, sigma_v, min_speed), {}, _clusters_check(c, v)))
+        out.append(("cluster_tracks", (P, V, radius, sigma_v, min_speed), {}, _ex10_check(P, V, radius, sigma_v, min_speed)))
     return out
 
 
@@ -93,9 +121,14 @@ def _ex10_random_scene(rng, n_objects: int, with_static: bool, radius: float):
         g = np.stack(np.meshgrid(np.arange(nx), np.arange(ny)), -1).reshape(-1, 2) * 0.1
         pts = np.column_stack([g, np.zeros(len(g))]) + rng.uniform(-0.01, 0.01, size=(len(g), 3))
         P.append(pts + np.array([x, 0.0, 0.0]))
-        x += 0.1 * (nx - 1) + (0.4 * radius if rng.random() < 0.5 else 3.0 * radius)
-        vel = rng.normal(size=3)
-        vel *= rng.uniform(1.0, 2.0) / np.linalg.norm(vel)
+        # touching and separate neighbours alternate (the same for every student: a position-only
+        # clustering fails the same cases for everyone)
+        x += 0.1 * (nx - 1) + (0.4 * radius if len(P) % 2 == 1 else 3.0 * radius)
+        while True:  # a box touching the previous one moves clearly differently (|dv| > 2.5 > sigma_v)
+            vel = rng.normal(size=3)
+            vel *= rng.uniform(1.0, 2.0) / np.linalg.norm(vel)
+            if not V or len(P) % 2 == 1 or np.linalg.norm(vel - V[-1].mean(axis=0)) > 2.5:
+                break
         V.append(vel + rng.normal(scale=0.01, size=(len(g), 3)))
     if with_static:
         m = int(rng.integers(5, 15))
@@ -114,8 +147,7 @@ def _ex10_hidden(rng):
         (5, True, 0.15, 1.5, 0.2),
     ):
         P, V = _ex10_random_scene(rng, n_obj, static, radius)
-        c, v, _ = _ex10_expected(P, V, radius, sigma_v, min_speed)
-        out.append(("cluster_tracks", (P, V, radius, sigma_v, min_speed), {}, _clusters_check(c, v)))
+        out.append(("cluster_tracks", (P, V, radius, sigma_v, min_speed), {}, _ex10_check(P, V, radius, sigma_v, min_speed)))
     return out
 
 

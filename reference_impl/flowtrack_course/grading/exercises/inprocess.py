@@ -33,6 +33,7 @@ import numpy as np
 
 from ..spec import Call, Exercise, Outcome, public_seed, student_seed
 from ..wire import NotPlainData, as_child_receives, plain_data
+from .feedback import describe_mistakes, mistakes_of, safe_text
 from .registry import get_exercise
 
 __all__ = ["run_in_process"]
@@ -156,8 +157,12 @@ def run_in_process(
         outcomes = _call_all(namespace, calls, test.timeout)
         fraction, message = scorer(outcomes)
         earned = round(test.points * _clip_fraction(fraction), 6)
+        lines = describe_mistakes(mistakes_of(message))
         if test.hidden:
-            message = f"hidden test: {earned:g}/{test.points:g}"
+            safe = safe_text(message) if earned < test.points else ""
+            message = "\n".join([f"hidden test: {earned:g}/{test.points:g}", *([safe] if safe else []), *lines])
+        elif lines:
+            message = "\n".join([str(message), *lines])
         results.append((test.name, earned, float(test.points), message))
         if verbose:
             print(f"{test.name}: {earned:g}/{test.points:g}" + ("" if test.hidden else f" - {message}"))

@@ -21,6 +21,7 @@ from . import (
     ex08_hungarian,
     ex09_track_management,
     ex10_motion_clustering,
+    ex11_concepts,
     ex12_rgbd_data_term,
 )
 
@@ -37,6 +38,7 @@ EXERCISES: tuple[Exercise, ...] = (
     ex08_hungarian.EXERCISE,
     ex09_track_management.EXERCISE,
     ex10_motion_clustering.EXERCISE,
+    ex11_concepts.EXERCISE,
     ex12_rgbd_data_term.EXERCISE,
 )
 

@@ -1,0 +1,180 @@
+"""The student bundle works on its own and poses the problems instead of answering them (issue 16).
+
+Worked answers to the syllabus' problems are tagged cells of the lessons: the book and the
+instructors' copy keep them, ``flowtrack release`` replaces them by a note; the stripped lessons
+still define every name their later cells use (checked statically, without running them). Links
+between lessons point to the bundle's notebooks; the README says how to install the light
+``student`` extra, which has no open3d and no book stack, and ``flowtrack check`` runs without them.
+Exercise texts do not print another exercise's answer.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import re
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from flowtrack_course.grading.exercises import EXERCISES
+from flowtrack_course.grading.release import WORKED_ANSWER_TAG, bundle_links, release, student_lesson
+from flowtrack_course.notebooks import read_notebook
+
+ROOT = Path(__file__).resolve().parents[1]
+LESSONS = sorted(p for p in (ROOT / "lessons").glob("*.md") if p.name != "README.md")
+
+
+@pytest.fixture(scope="module")
+def bundle(tmp_path_factory):
+    out = tmp_path_factory.mktemp("student") / "bundle"
+    release(out, source=ROOT)
+    return out
+
+
+def _tagged(cell) -> bool:
+    return WORKED_ANSWER_TAG in cell.metadata.get("tags", [])
+
+
+def _names(src: str) -> tuple[set[str], set[str]]:
+    """(names assigned, names loaded) by a code cell (IPython magics and `!` lines skipped)."""
+    lines = [ln for ln in src.splitlines() if not ln.lstrip().startswith(("%", "!"))]
+    tree = ast.parse("\n".join(lines))
+    stored, loaded = set(), set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name):
+            (stored if isinstance(node.ctx, ast.Store) else loaded).add(node.id)
+        elif isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            stored.add(node.name)
+        elif isinstance(node, ast.arg):  # a parameter is defined inside its function
+            stored.add(node.arg)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            stored |= {(a.asname or a.name).split(".")[0] for a in node.names}
+    return stored, loaded
+
+
+def test_problems_are_posed_and_their_worked_answers_tagged():
+    tagged = {}
+    for p in LESSONS:
+        nb = read_notebook(p)
+        tagged[p.stem] = [c for c in nb.cells if _tagged(c)]
+    for stem in ("01_camera_geometry", "02_variational_scene_flow", "04_bayes_and_kalman"):
+        assert tagged[stem], stem
+    text1 = (ROOT / "lessons" / "01_camera_geometry.md").read_text(encoding="utf-8")
+    assert "**Problem 1 (syllabus).**" in text1
+    text2 = (ROOT / "lessons" / "02_variational_scene_flow.md").read_text(encoding="utf-8")
+    assert "**Problem 2 (syllabus).**" in text2
+
+
+@pytest.mark.parametrize("lesson", LESSONS, ids=[p.stem for p in LESSONS])
+def test_stripped_lesson_defines_what_its_later_cells_use(lesson):
+    nb = read_notebook(lesson)
+    only_in_tagged: set[str] = set()
+    kept: set[str] = set()
+    for cell in nb.cells:
+        if cell.cell_type != "code":
+            continue
+        stored, loaded = _names(cell.source)
+        if _tagged(cell):
+            only_in_tagged |= stored - kept
+            continue
+        missing = (loaded & only_in_tagged) - stored
+        assert not missing, (lesson.name, missing, cell.source[:200])
+        kept |= stored
+        only_in_tagged -= stored
+
+
+def test_release_withholds_worked_answers_and_links_inside_the_bundle(bundle):
+    for p in LESSONS:
+        nb = nbformat.read(bundle / "lessons" / f"{p.stem}.ipynb", as_version=4)
+        assert not any(_tagged(c) for c in nb.cells)
+        n_runs = sum(
+            1
+            for i, c in enumerate(read_notebook(p).cells)
+            if _tagged(c) and (i == 0 or not _tagged(read_notebook(p).cells[i - 1]))
+        )
+        assert sum("**Your turn.**" in c.source for c in nb.cells) == n_runs
+        for c in nb.cells:
+            if c.cell_type != "markdown":
+                continue
+            for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", c.source):
+                if target.startswith(("http://", "https://", "mailto:")):
+                    continue
+                assert not target.endswith(".md") or target.startswith("http"), (p.name, target)
+                assert (bundle / "lessons" / target).resolve().exists(), (p.name, target)
+    # the worked Jacobian of Problem 1 is printed in the course, not in the bundle's lesson 1
+    assert "J_syllabus" in (ROOT / "lessons" / "01_camera_geometry.md").read_text(encoding="utf-8")
+    assert "J_syllabus" not in (bundle / "lessons" / "01_camera_geometry.ipynb").read_text(encoding="utf-8")
+
+
+def test_student_readmes_say_how_to_install_and_check(bundle):
+    readme = (bundle / "README.md").read_text(encoding="utf-8")
+    assert 'pip install "flowtrack[student]"' in readme and "flowtrack check exercises/" in readme
+    assert "mistake <id>" in readme
+    lessons_readme = (bundle / "lessons" / "README.md").read_text(encoding="utf-8")
+    assert "instructor's copy" not in lessons_readme and "jupytext" not in lessons_readme
+    for target in re.findall(r"\]\(([^)#\s]+)\)", lessons_readme):
+        assert (bundle / "lessons" / target).is_file(), target
+
+
+def test_bundle_links_rewrites_lesson_sources_and_drops_outside_links():
+    md = (
+        "[L3](03_graph_scene_flow.md) [L4](../lessons/04_bayes_and_kalman.md#3) [src](../reference_impl/x.py)"
+    )
+    assert (
+        bundle_links(md) == "[L3](03_graph_scene_flow.ipynb) [L4](../lessons/04_bayes_and_kalman.ipynb#3) src"
+    )
+    nb = nbformat.v4.new_notebook()
+    nb.cells = [
+        nbformat.v4.new_markdown_cell("a"),
+        nbformat.v4.new_code_cell("x = 1", metadata={"tags": [WORKED_ANSWER_TAG]}),
+        nbformat.v4.new_markdown_cell("b", metadata={"tags": [WORKED_ANSWER_TAG]}),
+        nbformat.v4.new_markdown_cell("c"),
+    ]
+    out = student_lesson(nb)
+    assert [c.source[:3] for c in out.cells] == ["a", "> *", "c"]
+
+
+def test_student_extra_is_light():
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    heavy = ("open3d", "sphinx", "myst", "selenium", "mathics", "bdsim", "scikit-sparse")
+    assert not any(d.startswith(heavy) for d in meta["dependencies"])
+    student = meta["optional-dependencies"]["student"]
+    assert not any(d.startswith(heavy) for d in student)
+    # the full installs keep open3d
+    for extra in ("pipeline", "dev", "lessons"):
+        assert any(d.startswith("open3d") for d in meta["optional-dependencies"][extra])
+
+
+def test_check_runs_without_open3d_nbgrader_or_the_book_stack():
+    code = (
+        "import sys\n"
+        "for m in ('open3d', 'nbgrader', 'jupytext', 'sphinx', 'myst_nb', 'nbclient'):\n"
+        "    sys.modules[m] = None\n"
+        "from flowtrack_course.grading.check import check_notebook\n"
+        f"sys.exit(check_notebook({str(ROOT / 'exercises' / 'ex05_cv_model.ipynb')!r}))\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "public score: 3 / 3" in r.stdout
+
+
+def test_exercise_texts_do_not_print_another_exercises_answer():
+    text = {
+        ex.id: "\n".join(
+            "".join(c["source"])
+            for c in json.loads((ROOT / "exercises" / ex.notebook).read_text(encoding="utf-8"))["cells"]
+            if c["cell_type"] == "markdown"
+        )
+        for ex in EXERCISES
+    }
+    jacobian = re.compile(r"-\s*f_x\s*X\s*/\s*Z\^2")  # ex01's answer, written out
+    assert not any(jacobian.search(t) for k, t in text.items()), [
+        k for k, t in text.items() if jacobian.search(t)
+    ]
+    q_kron = re.compile(r"Q\s*=\s*Q_\{1D\}\s*\\otimes\s*I_2\b")
+    assert not any(q_kron.search(t) for k, t in text.items() if k != "ex05_cv_model")
