@@ -318,6 +318,8 @@ _COUNTS: list = []  # the one _CholmodCounts, made on first use
 
 
 def _cholmod_counts():
+    if not HAVE_CHOLMOD:
+        return None
     if not _COUNTS:
         _COUNTS.append(_CholmodCounts() if HAVE_CHOLMOD else None)
     c = _COUNTS[0]
