@@ -79,16 +79,17 @@ HAVE_PYAMG = _pyamg is not None
 
 _SOLVERS = ("auto", "cholmod", "splu", "cg", "amg")
 
-# solver="auto" cost model (see graph_scene_flow's docstring). Unit: the time of one product A @ B
-# with B of shape (N, 3), i.e. one pass over the non-zeros of A for three columns. Constants measured
-# with benchmarks/bench_graphflow.py (section 5) on 100k-point clouds as ratios of times in one run,
-# so the machine's speed cancels.
-_CG_ITERS_PER_SQRT_KAPPA = 6.0  # Jacobi block CG iterations to tol = 1e-8: ~6 sqrt(kappa) (8-20 % spread)
-_CG_UNITS_PER_ITER = 6.0  # one mat-vec, the Jacobi scaling and the 3-column vector updates
-_AMG_UNITS = 650.0  # pyamg setup (~150) + ~25 preconditioned iterations (~20 each), nearly kappa-free
-_ANALYSIS_UNITS = 100.0  # AMD ordering + elimination tree + column counts, ~ nnz(A) log
-_FLOP_UNITS = 0.6  # one multiply-add of the simplicial LDL' factorisation, per nnz(A)
-_SOLVE_UNITS = 2.0  # forward + backward substitution of 3 columns, per nnz(L) / nnz(A)
+# solver="auto" cost model (see graph_scene_flow's docstring). Unit: one Jacobi block-CG iteration on
+# the N points (a 3-column mat-vec and the vector updates; ~ N, as kNN rows have ~k non-zeros).
+# Constants measured with benchmarks/bench_graphflow.py on 20k and 100k surface and volumetric clouds
+# as ratios of times in one run, so the machine's speed cancels.
+_CG_ITERS_PER_SQRT_KAPPA = 8.0  # Jacobi CG iterations to tol = 1e-8: 6.4-9.2 sqrt(kappa) measured
+_AMG_SETUP = 35.0  # pyamg smoothed-aggregation hierarchy, in CG iterations (26-40 measured)
+_AMG_PER_ITER = 4.0  # one V-cycle per column + mat-vec, in CG iterations (3.3-6 measured)
+_AMG_ITERS_SCALE, _AMG_ITERS_EXPONENT = 4.0, 0.3  # AMG-CG iterations ~ 4 kappa^0.3 (10 / 20 / 30-44)
+_ANALYSIS = 15.0  # AMD ordering + elimination tree + column counts, in CG iterations (10-19 measured)
+_FLOPS_PER_ITER_POINT = 200.0  # factorisation multiply-adds costing one CG iteration, per point
+_SOLVE_NNZ_PER_ITER_POINT = 20.0  # non-zeros of L whose 3-column substitutions cost one CG iteration
 # Run the symbolic analysis only when the cheaper iterative method is predicted to cost more than this
 # many analyses: below it the analysis alone would eat the margin a direct solve could win.
 _ANALYSE_ABOVE = 4.0
@@ -355,10 +356,10 @@ def _amg_preconditioner(A: sp.csr_matrix):
 
 
 def _predicted_costs(A: sp.csr_matrix, kappa: float) -> dict:
-    """Iterative costs of the cost model, in units of one (N, 3) mat-vec (see graph_scene_flow)."""
-    costs = {"cg": _CG_UNITS_PER_ITER * _CG_ITERS_PER_SQRT_KAPPA * np.sqrt(kappa)}
+    """Iterative costs of the cost model, in Jacobi-CG iterations (see graph_scene_flow, Notes)."""
+    costs = {"cg": _CG_ITERS_PER_SQRT_KAPPA * np.sqrt(kappa)}
     if HAVE_PYAMG:
-        costs["amg"] = _AMG_UNITS
+        costs["amg"] = _AMG_SETUP + _AMG_PER_ITER * _AMG_ITERS_SCALE * kappa**_AMG_ITERS_EXPONENT
     return costs
 
 
@@ -377,12 +378,12 @@ def _auto_choice(A: sp.csr_matrix, kappa: float) -> tuple[str, object]:
         if HAVE_PYAMG and iterative["amg"] < iterative["cg"]:
             return "amg", None
         return ("cholmod" if HAVE_CHOLMOD else "splu"), None
-    if iterative[best_iter] <= _ANALYSE_ABOVE * _ANALYSIS_UNITS:
+    if iterative[best_iter] <= _ANALYSE_ABOVE * _ANALYSIS:
         return best_iter, None
     factor = _cholmod_analyze(A.tocsc(), mode="simplicial", ordering_method="amd")
     c = counts.colcounts(A, factor.P()).astype(np.float64)
-    nnz_a = float(A.nnz)
-    direct = _FLOP_UNITS * float(c @ c) / nnz_a + _SOLVE_UNITS * float(c.sum()) / nnz_a
+    n = float(A.shape[0])
+    direct = float(c @ c) / (_FLOPS_PER_ITER_POINT * n) + float(c.sum()) / (_SOLVE_NNZ_PER_ITER_POINT * n)
     if direct < iterative[best_iter]:
         return "cholmod", factor
     return best_iter, None
@@ -517,32 +518,33 @@ def graph_scene_flow(
 
     Notes
     -----
-    **How** ``solver="auto"`` **chooses.** Costs are counted in units of one product :math:`A B`,
-    :math:`B \in \mathbb{R}^{N \times 3}` (one pass over the :math:`\operatorname{nnz}(A)` non-zeros),
-    with constants measured in ``benchmarks/bench_graphflow.py`` as ratios of times in one run.
+    **How** ``solver="auto"`` **chooses.** Costs are counted in units of one Jacobi-CG iteration
+    on the three columns (a sparse product :math:`A B`, :math:`B \in \mathbb{R}^{N \times 3}`, and the
+    vector updates; :math:`\propto N` as kNN rows hold about :math:`k` non-zeros), with constants
+    measured in ``benchmarks/bench_graphflow.py`` as ratios of times in one run.
 
-    - Jacobi CG: the Gershgorin bound :math:`\kappa = 1 + 2 \lambda d_{max} / \Delta t^2` on the
-      condition number gives :math:`\approx 6 \sqrt{\kappa}` iterations to ``tol`` = 1e-8, each
-      :math:`\approx 6` units: :math:`T_{cg} \approx 36 \sqrt{\kappa}`.
-    - AMG-CG (pyamg importable): multigrid makes the iteration count almost independent of
-      :math:`\kappa` (about 20–30): :math:`T_{amg} \approx 650` units including the set-up.
+    - Jacobi CG: with the Gershgorin bound :math:`\kappa = 1 + 2 \lambda d_{max} / \Delta t^2` on the
+      condition number, CG needs :math:`O(\sqrt\kappa)` iterations; measured to ``tol`` = 1e-8:
+      :math:`T_{cg} \approx 8 \sqrt{\kappa}`.
+    - AMG-CG (pyamg importable): multigrid removes most of the :math:`\kappa` dependence (10, 20 and
+      30–44 iterations at :math:`\kappa` = 20, 200, 2000), at about 4 CG iterations per V-cycle after
+      a set-up of about 35: :math:`T_{amg} \approx 35 + 16\,\kappa^{0.3}`.
     - CHOLMOD: the cost is set by the fill, which the geometry decides and :math:`\kappa` does not
       see. A kNN graph of a *surface* (one depth camera) behaves like a 2-D mesh: nested-dissection
       separators of :math:`O(\sqrt N)` points, :math:`\operatorname{nnz}(L) = O(N \log N)`, work
       :math:`O(N^{3/2})`. A *volumetric* cloud (LiDAR sweeps, merged views, samples of a solid)
       behaves like a 3-D mesh: separators of :math:`O(N^{2/3})`, :math:`\operatorname{nnz}(L) =
-      O(N^{4/3})`, work :math:`O(N^2)` — at N = 100k about 30 times the non-zeros and 200 times the
+      O(N^{4/3})`, work :math:`O(N^2)` — at N = 100k about 7 times the non-zeros and 85 times the
       work of a surface. CHOLMOD's symbolic analysis measures it before any numeric work: the AMD
       ordering :math:`P`, the elimination tree of :math:`P A P^\top` and the column counts
       :math:`c_j` of its factor (``cholmod_rowcolcounts``, :math:`O(\operatorname{nnz}(A))`). The
-      simplicial :math:`LDL^\top` costs :math:`\sum_j c_j^2` multiply-adds and the three solves
-      :math:`6 \sum_j c_j`, so :math:`T_{chol} \approx 0.6 \sum_j c_j^2 / \operatorname{nnz}(A) + 2
-      \operatorname{nnz}(L) / \operatorname{nnz}(A)` units, after an analysis of :math:`T_{an}
-      \approx 100` units.
+      simplicial :math:`LDL^\top` costs about :math:`\sum_j c_j^2` multiply-adds and the three
+      solves :math:`6 \sum_j c_j`, so :math:`T_{chol} \approx \sum_j c_j^2 / (200 N) + \sum_j c_j /
+      (20 N)`, after an analysis of :math:`T_{an} \approx 15`.
 
     The analysis is itself part of the call, so it runs only when the cheaper iterative method is
-    predicted at more than :math:`4 T_{an}` (below that, even a free factorisation could not win
-    enough to pay for it). Then the smallest of :math:`T_{cg}, T_{amg}, T_{chol}` wins, and CHOLMOD's
+    predicted at more than :math:`4 T_{an} = 60` (below that, even a free factorisation could not
+    win enough to pay for it). Then the smallest of :math:`T_{cg}, T_{amg}, T_{chol}` wins, and CHOLMOD's
     numeric factorisation reuses the analysis it was chosen from. Without the column counts (libcholmod
     not loadable through ctypes) the rule falls back to :math:`\kappa \le 18 (N / 20000)^{0.8}` for
     CG, then AMG, then CHOLMOD/SuperLU. ``benchmarks/results/graphflow.md`` shows the choice against
