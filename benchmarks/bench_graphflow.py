@@ -238,10 +238,12 @@ def section_solver_choice(sizes, lams, repeat):
         f"{sceneflow.HAVE_PYAMG}.",
         "",
         "| cloud | N | lam | kappa | " + " | ".join(f"{s} (ms)" for s in solvers)
-        + " | auto (ms) | auto picks | fastest | auto / best | auto rel. error |",
-        "|---|---:|---:|---:|" + "---:|" * len(solvers) + "---:|---|---|---:|---:|",
+        + " | auto (ms) | auto picks | fastest | decision (ms) | auto / best | (decision + picked) / best "
+        "| auto rel. error |",
+        "|---|---:|---:|---:|" + "---:|" * len(solvers) + "---:|---|---|---:|---:|---:|---:|",
     ]
-    worst = 0.0
+    worst = worst_decided = 0.0
+    right = rows = 0
     for kind in ("surface", "volumetric"):
         for n in sizes:
             if kind == "surface":
@@ -266,21 +268,35 @@ def section_solver_choice(sizes, lams, repeat):
                         t, V = best_of(call, 1)
                         times[solver] = min(t, times.get(solver, np.inf))
                         flows[solver] = V
-                picks = sceneflow._auto_choice(A, kappa)[0]
+                t_decide, (picks, _) = best_of(lambda A=A, kappa=kappa: sceneflow._auto_choice(A, kappa),
+                                               repeat)
                 fastest = min(solvers, key=times.get)
                 ratio = times["auto"] / times[fastest]
+                # less noisy reading: the decision plus the picked solver's own time in this run (for a
+                # CHOLMOD pick the auto call itself: its analysis is the factorisation's, not extra)
+                decided = (times["auto"] if picks == "cholmod" else t_decide + times[picks]) / times[fastest]
                 worst = max(worst, ratio)
+                worst_decided = max(worst_decided, decided)
+                right += picks == fastest
                 ref = flows.get("cholmod", flows["cg"])
                 err = np.max(np.linalg.norm(flows["auto"] - ref, axis=0) / np.linalg.norm(ref, axis=0))
                 out.append(
                     f"| {kind} | {n} | {lam:g} | {kappa:.0f} | "
                     + " | ".join(f"{1e3 * times[s]:.0f}" for s in solvers)
-                    + f" | {1e3 * times['auto']:.0f} | {picks} | {fastest} | {ratio:.2f} | {err:.1e} |"
+                    + f" | {1e3 * times['auto']:.0f} | {picks} | {fastest} | {1e3 * t_decide:.0f} | "
+                    f"{ratio:.2f} | {decided:.2f} | {err:.1e} |"
                 )
+                rows += 1
     out += [
         "",
-        f"Worst auto / best over the table: {worst:.2f} (target ≤ 1.5: "
-        + ("met" if worst <= 1.5 else "NOT met") + ").",
+        f"`auto` picked the fastest solver in {right} of {rows} rows. Worst auto / best: {worst:.2f}; "
+        f"worst (decision + picked solver) / best: {worst_decided:.2f} (target ≤ 1.5: "
+        + ("met" if worst <= 1.5 else ("met by the decision, " if worst_decided <= 1.5 else "NOT met, "))
+        + ("" if worst <= 1.5 else "the timed `auto` call is NOT within 1.5x in every row") + "). "
+        "The machine is shared (load ~10 on 2 cores): `auto` and the solver it picks run the same code "
+        "once the decision is made, so the difference between the two readings is timing noise; "
+        "`decision` is `sceneflow._auto_choice` alone (the symbolic analysis when it runs one); for a "
+        "CHOLMOD pick the second reading is the timed `auto` call, whose analysis the factorisation reuses.",
     ]
     return out, worst
 
