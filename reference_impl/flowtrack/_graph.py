@@ -6,8 +6,8 @@ input beyond what its docstring says (the public callers do that).
 
 - :func:`knn_edges` — directed k-nearest-neighbour edges of a point cloud, self-pairs removed.
 - :func:`laplacian` — combinatorial :math:`D - W` or normalised :math:`I - D^{-1/2} W D^{-1/2}`.
-- :func:`block_pcg` — Jacobi-preconditioned CG on several right-hand sides at once, restarted on
-  the true residual.
+- :func:`block_pcg` — preconditioned CG (Jacobi, or any SPD preconditioner such as an AMG V-cycle)
+  on several right-hand sides at once, restarted on the true residual.
 - :func:`apply_transform` — a 4×4 rigid transform applied to points.
 - :func:`as_labels` — validation of an integer label vector.
 """
