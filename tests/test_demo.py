@@ -14,6 +14,7 @@ from flowtrack.pipeline import detections_from_clusters
 from flowtrack.synth import make_scene
 from flowtrack_course.cli import main
 from flowtrack_course.demo import DemoConfig
+from oracles import assert_same_run, assert_same_text_numbers
 
 FRAMES, AHEAD = 12, 3
 PROMISED = ("flow_field.png", "clusters_3d.png", "trajectories.png", "tracks.gif", "motorcycle_flow.png",
@@ -375,6 +376,12 @@ def test_reproduce_command_without_cli_options_is_a_python_call(change, monkeypa
     assert {k: got[k] for k in want} == want
 
 
+#: Reruns of the demo: metrics are means over thousands of points and frames, so last-bit differences
+#: of the solvers (BLAS, CHOLMOD, open3d) move them by ~1e-14 relative; 1e-9 is far above that and far
+#: below any real change (a changed estimate moves a metric in its 2nd or 3rd digit).
+RERUN_RTOL = 1e-9
+
+
 def _comparable(summary: dict) -> dict:
     """A summary without what legitimately changes between runs (timings, output paths)."""
     drop = ("seconds_per_pair", "total_seconds", "figures", "reproduce")
@@ -411,11 +418,16 @@ def test_the_command_in_the_box_reproduces_a_run_on_a_tum_sequence(tmp_path):
     assert "your own TUM RGB-D sequence" not in _reproduce_box(out)  # the hint is for synthetic runs
     shutil.rmtree(out)
     assert main([*shlex.split(cmd)[1:], "--no-progress"]) == 0
-    assert _comparable(json.loads((out / "metrics.json").read_text())) == _comparable(first)
+    rerun = json.loads((out / "metrics.json").read_text())
+    assert_same_run(_comparable(rerun), _comparable(first), RERUN_RTOL)
 
 
 def test_two_runs_with_the_same_seed_are_identical(demo_out, summary, tmp_path):
-    """Bit for bit: tracks, predictions and every metric (open3d runs on one thread, see run_demo)."""
+    """Same seed, same tracks: every count and id exactly, every float metric to RERUN_RTOL.
+
+    open3d runs on one thread (see run_demo), so on one machine the runs are in fact bit-identical;
+    the tolerance keeps the test true where BLAS/CHOLMOD kernels reduce in an alignment-dependent order.
+    """
     import open3d as o3d
 
     from flowtrack_course.demo import run_demo
@@ -427,8 +439,9 @@ def test_two_runs_with_the_same_seed_are_identical(demo_out, summary, tmp_path):
     assert set(during) == {1}
     assert o3d.utility.get_max_threads() == before
     again = json.loads(json.dumps(again, default=str))  # as metrics.json has it
-    assert _comparable(again) == _comparable(summary)
-    assert (tmp_path / "again" / "metrics.md").read_text() == (demo_out / "metrics.md").read_text()
+    assert_same_run(_comparable(again), _comparable(summary), RERUN_RTOL)
+    assert_same_text_numbers((tmp_path / "again" / "metrics.md").read_text(),
+                             (demo_out / "metrics.md").read_text(), "metrics.md")
 
 
 def test_support_planes_is_repeatable():

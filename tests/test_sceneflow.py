@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -26,6 +27,7 @@ from flowtrack.sceneflow import (
 )
 
 SOLVERS = ["auto", "cg", "splu"] + (["cholmod"] if sceneflow.HAVE_CHOLMOD else [])
+SOLVERS += ["amg"] if sceneflow.HAVE_PYAMG else []
 
 
 # ----------------------------------------------------------------------------------------------
@@ -176,6 +178,107 @@ def test_graph_flow_matches_dense_kron_system(rng, solver, lam):
     V = graph_scene_flow(X, Y, dt, lam, k=k, solver=solver)
     expected = dense_syllabus_solve(X, Y, dt, lam, brute_knn_affinity(X, k))
     np.testing.assert_allclose(V, expected, rtol=1e-8, atol=1e-8 * np.abs(expected).max())
+
+
+def _sparse_oracle(X, Y, dt, lam, W):
+    """scipy's sparse direct solve of (dt² I + lam (D - W)) V = dt (Y - X), assembled here."""
+    W = sp.csr_matrix(W)
+    A = sp.diags(dt * dt + lam * np.asarray(W.sum(axis=1)).ravel()) - lam * W
+    return np.column_stack([spla.spsolve(A.tocsc(), dt * (Y[:, c] - X[:, c])) for c in range(3)])
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("lam", [1e-3, 0.1, 1.0])
+def test_graph_flow_on_a_volumetric_cloud_matches_spsolve(solver, lam):
+    """Points filling a cube (not a camera surface): every solver, CG ones at their stated tol."""
+    rng = np.random.default_rng(12)
+    n, dt = 1500, 0.1
+    X = rng.uniform(size=(n, 3))
+    Y = X + 0.01 * np.sin(3 * X[:, ::-1]) + 0.002 * rng.normal(size=(n, 3))
+    W = knn_graph(X, k=8)
+    expected = _sparse_oracle(X, Y, dt, lam, W)
+    V = graph_scene_flow(X, Y, dt, lam, W=W, solver=solver, tol=1e-8)
+    rel = np.linalg.norm(V - expected, axis=0) / np.linalg.norm(expected, axis=0)
+    assert rel.max() <= 2e-8, rel  # tol = 1e-8 per column for CG; direct solvers ~1e-14
+
+
+@pytest.mark.skipif(not sceneflow.HAVE_PYAMG, reason="pyamg not installed")
+def test_amg_preconditioner_is_symmetric_positive_definite_and_cuts_iterations():
+    """CG needs an SPD M^-1; one V-cycle is, and it beats Jacobi's iteration count on a stiff system."""
+    from flowtrack._graph import block_pcg
+
+    rng = np.random.default_rng(3)
+    n = 800
+    X = rng.uniform(size=(n, 3))
+    A, _ = sceneflow._graph_system(n, knn_graph(X, k=8), 0.1, 1.0)
+    M = sceneflow._amg_preconditioner(A)
+    Minv = M(np.eye(n))
+    np.testing.assert_allclose(Minv, Minv.T, atol=1e-10 * np.abs(Minv).max())
+    assert np.linalg.eigvalsh((Minv + Minv.T) / 2).min() > 0
+    B = rng.normal(size=(n, 3))
+    _, it_jacobi, ok_j = block_pcg(A, B, 1e-10, 10_000)
+    X_amg, it_amg, ok_a = block_pcg(A, B, 1e-10, 10_000, precond=M)
+    assert ok_j and ok_a and it_amg * 3 < it_jacobi
+    np.testing.assert_allclose(A @ X_amg, B, atol=1e-9 * np.abs(B).max())
+
+
+@pytest.mark.skipif(not sceneflow.HAVE_CHOLMOD, reason="scikit-sparse not installed")
+def test_cholmod_column_counts_are_the_factor_nonzeros():
+    """Symbolic counts (no numeric work) against the non-zeros of dense and CHOLMOD numeric factors."""
+    from sksparse.cholmod import analyze
+
+    counts = sceneflow._cholmod_counts()
+    assert counts is not None
+    rng = np.random.default_rng(5)
+    X = rng.uniform(size=(200, 3))
+    A, _ = sceneflow._graph_system(200, knn_graph(X, k=6), 0.1, 0.5)
+    A = A + sp.diags(rng.uniform(0, 0.01, 200))  # generic values: no accidental cancellation
+    perm = analyze(sp.csc_matrix(A), mode="simplicial", ordering_method="amd").P()
+    c = counts.colcounts(A, perm)
+    C = A.toarray()[np.ix_(perm, perm)]
+    Ld = np.linalg.cholesky(C)
+    np.testing.assert_array_equal(c, (np.abs(Ld) > 0).sum(axis=0))  # integers: exact
+    assert c.sum() > 2 * (sp.triu(A).nnz)  # there is fill to see
+
+
+@pytest.mark.skipif(not sceneflow.HAVE_CHOLMOD, reason="scikit-sparse not installed")
+def test_auto_sees_the_fill_a_condition_bound_cannot():
+    """Same N, similar kappa: a 2-D grid (a surface) factorises cheaply, a 3-D grid (a volume) not."""
+
+    def grid_graph(shape):
+        idx = np.arange(np.prod(shape)).reshape(shape)
+        rows, cols = [], []
+        for axis in range(len(shape)):
+            a = np.take(idx, range(shape[axis] - 1), axis=axis).ravel()
+            b = np.take(idx, range(1, shape[axis]), axis=axis).ravel()
+            rows += [a, b]
+            cols += [b, a]
+        r, c = np.concatenate(rows), np.concatenate(cols)
+        return sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(idx.size,) * 2)
+
+    surface, volume = grid_graph((181, 181)), grid_graph((32, 32, 32))
+    picks = {}
+    for name, W in (("surface", surface), ("volume", volume)):
+        A, kappa = sceneflow._graph_system(W.shape[0], W, 0.1, 1.0)
+        assert 800 <= kappa <= 1300
+        picks[name] = sceneflow._auto_choice(A, kappa)[0]
+    assert picks["surface"] == "cholmod"
+    assert picks["volume"] in ("cg", "amg")
+
+
+def test_graph_flow_auto_without_column_counts_or_pyamg(rng, monkeypatch):
+    """The fallbacks: no ctypes column counts -> condition-bound rule; no pyamg -> "amg" fails clearly."""
+    X = rng.uniform(size=(300, 3))
+    Y = X + 0.02 * rng.normal(size=(300, 3))
+    W = knn_graph(X, k=6)
+    monkeypatch.setattr(sceneflow, "_COUNTS", [None])
+    monkeypatch.setattr(sceneflow, "HAVE_PYAMG", False)
+    for lam in (1e-3, 1.0):
+        expected = _sparse_oracle(X, Y, 0.1, lam, W)
+        V = graph_scene_flow(X, Y, 0.1, lam, W=W)
+        np.testing.assert_allclose(V, expected, rtol=1e-7, atol=1e-8 * np.abs(expected).max())
+    with pytest.raises(ValueError, match="solver='amg' needs pyamg"):
+        graph_scene_flow(X, Y, 0.1, 0.1, W=W, solver="amg")
 
 
 def test_graph_flow_cg_meets_stated_tolerance(rng):

@@ -36,14 +36,24 @@ def _inside(shape, Y):
 
 
 def test_determinism_by_seed():
+    """The seed decides the scene: reruns agree to rounding, another seed gives another scene.
+
+    Depth and flow come out of ray casting with matrix products (BLAS), whose last bits may depend on
+    the build and on memory alignment, so they are compared to 1e-12 relative of the array's scale
+    (rounding is ~1e-16; the 2 mm depth noise or a moved object changes them by ~1e-3). A colour is a
+    shading rounded to 8 bits, which a last-bit change can push across a rounding boundary: at most
+    one grey level, and almost never.
+    """
     a = make_scene(n_objects=2, n_frames=3, image_size=(60, 80), seed=3)
     b = make_scene(n_objects=2, n_frames=3, image_size=(60, 80), seed=3)
     c = make_scene(n_objects=2, n_frames=3, image_size=(60, 80), seed=4)
     for fa, fb in zip(a.frames, b.frames):
-        np.testing.assert_array_equal(fa.depth, fb.depth)
-        np.testing.assert_array_equal(fa.rgb, fb.rgb)
-        np.testing.assert_array_equal(fa.gt_flow, fb.gt_flow)
-    assert not np.array_equal(a.frames[0].depth, c.frames[0].depth)
+        np.testing.assert_array_equal(fa.depth > 0, fb.depth > 0)  # same pixels hit
+        np.testing.assert_allclose(fa.depth, fb.depth, rtol=0, atol=1e-12 * np.abs(fa.depth).max())
+        np.testing.assert_allclose(fa.gt_flow, fb.gt_flow, rtol=0, atol=1e-12 * np.abs(fa.gt_flow).max())
+        diff = np.abs(fa.rgb.astype(int) - fb.rgb.astype(int))
+        assert diff.max() <= 1 and (diff > 0).mean() < 1e-3
+    assert np.abs(a.frames[0].depth - c.frames[0].depth).max() > 1e-3
 
 
 def _two_box_setup():
@@ -264,8 +274,9 @@ def test_crowded_scenes_are_placed_without_collisions(kwargs):
                 gap = np.linalg.norm(P[a] - P[b], axis=1) - sc.objects[a].radius - sc.objects[b].radius
                 assert gap.min() > 0, (a, b, gap.min())
     again = make_scene(n_frames=12, image_size=(48, 64), noise=0.0, **kwargs)
-    for k in ids:  # deterministic by seed also when placement needed several rounds
-        np.testing.assert_array_equal(again.trajectories[k].position(t), sc.trajectories[k].position(t))
+    for k in ids:  # deterministic by seed also when placement needed several rounds (to rounding)
+        np.testing.assert_allclose(again.trajectories[k].position(t), sc.trajectories[k].position(t),
+                                   rtol=1e-12, atol=1e-12)
 
 
 def test_an_impossible_scene_says_what_to_change():

@@ -6,8 +6,8 @@ input beyond what its docstring says (the public callers do that).
 
 - :func:`knn_edges` — directed k-nearest-neighbour edges of a point cloud, self-pairs removed.
 - :func:`laplacian` — combinatorial :math:`D - W` or normalised :math:`I - D^{-1/2} W D^{-1/2}`.
-- :func:`block_pcg` — Jacobi-preconditioned CG on several right-hand sides at once, restarted on
-  the true residual.
+- :func:`block_pcg` — preconditioned CG (Jacobi, or any SPD preconditioner such as an AMG V-cycle)
+  on several right-hand sides at once, restarted on the true residual.
 - :func:`apply_transform` — a 4×4 rigid transform applied to points.
 - :func:`as_labels` — validation of an integer label vector.
 """
@@ -109,8 +109,13 @@ def block_pcg(
     X0: np.ndarray | None = None,
     per_column: bool = True,
     callback: Callable[[np.ndarray], None] | None = None,
+    precond: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, int, bool]:
-    r"""Jacobi-preconditioned CG for :math:`A X = B` with ``B`` of shape (n, C), SPD ``A`` (n, n).
+    r"""Preconditioned CG for :math:`A X = B` with ``B`` of shape (n, C), SPD ``A`` (n, n).
+
+    The preconditioner is Jacobi (:math:`M^{-1} = \operatorname{diag}(A)^{-1}`) unless ``precond``
+    is given: ``precond(R)`` applies a symmetric positive definite :math:`M^{-1}` to the (n, C)
+    block of residuals (e.g. one algebraic-multigrid V-cycle per column).
 
     Two ways of running the C systems at once:
 
@@ -138,6 +143,8 @@ def block_pcg(
     per_column : bool
     callback : callable, optional
         ``callback(X)`` after every iteration (``X`` is the live iterate: copy it to keep it).
+    precond : callable, optional
+        ``precond(R) -> Z`` for (n, C) arrays; Jacobi when None.
 
     Returns
     -------
@@ -153,7 +160,12 @@ def block_pcg(
     >>> np.allclose(A @ X, [[1.0, 0.0], [2.0, 1.0]]), its <= 2, ok
     (True, True, True)
     """
-    dinv = 1.0 / A.diagonal()
+    if precond is None:
+        dinv = 1.0 / A.diagonal()
+
+        def precond(R):
+            return R * dinv[:, None]
+
     if per_column:
 
         def dot(U, V):
@@ -184,7 +196,7 @@ def block_pcg(
         R = B - A @ X
         if done(norm(R), target):
             return X, it, True
-        Z = R * dinv[:, None]
+        Z = precond(R)
         P = Z.copy()
         rz = dot(R, Z)
         while it < maxiter:
@@ -198,7 +210,7 @@ def block_pcg(
                 callback(X)
             if done(norm(R), target):
                 break
-            Z = R * dinv[:, None]
+            Z = precond(R)
             rz_new = dot(R, Z)
             beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
             P = Z + beta * P

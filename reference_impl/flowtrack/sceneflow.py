@@ -18,8 +18,9 @@ which is the syllabus' :math:`(A^\top A + \lambda L \otimes I_3) v = A^\top b` w
 I_{3N}` written without the Kronecker product. The matrix is symmetric positive definite (eigenvalues in
 :math:`[\Delta t^2, \Delta t^2 + 2 \lambda d_{max}]` by Gershgorin, :math:`d_{max}` the largest degree)
 and diagonally dominant; :func:`graph_scene_flow` factorises it once (CHOLMOD when scikit-sparse is
-importable, else SuperLU) or runs a Jacobi-preconditioned block CG, whichever the measurements in
-``benchmarks/results/graphflow.md`` favour for the problem at hand.
+importable, else SuperLU) or runs a block CG (Jacobi or, with pyamg, algebraic-multigrid preconditioned),
+whichever a cost model fed by CHOLMOD's symbolic analysis (the fill of the factor) predicts fastest
+(see :func:`graph_scene_flow`, Notes; measured in ``benchmarks/results/graphflow.md``).
 
 Rigid scene flow
 ----------------
@@ -48,9 +49,15 @@ from .rgbd_flow import rgbd_scene_flow
 from .variational import variational_scene_flow
 
 try:  # optional: CHOLMOD (scikit-sparse <= 0.4.x builds against SuiteSparse 5; 0.5 needs SuiteSparse 7)
+    from sksparse.cholmod import analyze as _cholmod_analyze
     from sksparse.cholmod import cholesky as _cholmod_cholesky
 except Exception:  # pragma: no cover - depends on the environment
-    _cholmod_cholesky = None
+    _cholmod_cholesky = _cholmod_analyze = None
+
+try:  # optional: algebraic multigrid preconditioner for CG
+    import pyamg as _pyamg
+except Exception:  # pragma: no cover - depends on the environment
+    _pyamg = None
 
 __all__ = [
     "variational_scene_flow",
@@ -65,16 +72,32 @@ __all__ = [
     "rigid_flow_per_cluster",
     "scene_flow_metrics",
     "HAVE_CHOLMOD",
+    "HAVE_PYAMG",
 ]
 
 #: True when scikit-sparse's CHOLMOD could be imported (used by ``solver="auto"``).
 HAVE_CHOLMOD = _cholmod_cholesky is not None
+#: True when pyamg could be imported (``solver="amg"``, and ``"auto"`` on ill-conditioned systems).
+HAVE_PYAMG = _pyamg is not None
 
-_SOLVERS = ("auto", "cholmod", "splu", "cg")
-# solver="auto": block CG when the Gershgorin bound on cond(dt^2 I + lam L) is at most a limit, else a
-# direct solver. CG costs ~ N sqrt(kappa), the Cholesky factorisation ~ N^1.4 on depth-camera kNN
-# graphs (k = 8), so with CHOLMOD the crossover grows with N: measured at kappa ~ 18 for N = 20k and
-# ~ 60 for N = 100k (benchmarks/bench_graphflow.py, section 4), i.e. about 18 (N / 20k)^0.8 ...
+_SOLVERS = ("auto", "cholmod", "splu", "cg", "amg")
+
+# solver="auto" cost model (see graph_scene_flow's docstring). Unit: one Jacobi block-CG iteration on
+# the N points (a 3-column mat-vec and the vector updates; ~ N, as kNN rows have ~k non-zeros).
+# Constants measured with benchmarks/bench_graphflow.py on 20k and 100k surface and volumetric clouds
+# as ratios of times in one run, so the machine's speed cancels.
+_CG_ITERS_PER_SQRT_KAPPA = 8.0  # Jacobi CG iterations to tol = 1e-8: 6.4-9.2 sqrt(kappa) measured
+_AMG_SETUP = 35.0  # pyamg smoothed-aggregation hierarchy, in CG iterations (26-40 measured)
+_AMG_PER_ITER = 4.0  # one V-cycle per column + mat-vec, in CG iterations (3.3-6 measured)
+_AMG_ITERS_SCALE, _AMG_ITERS_EXPONENT = 4.0, 0.3  # AMG-CG iterations ~ 4 kappa^0.3 (10 / 20 / 30-44)
+_ANALYSIS = 15.0  # AMD ordering + elimination tree + column counts, in CG iterations (10-19 measured)
+_FLOPS_PER_ITER_POINT = 200.0  # factorisation multiply-adds costing one CG iteration, per point
+_SOLVE_NNZ_PER_ITER_POINT = 20.0  # non-zeros of L whose 3-column substitutions cost one CG iteration
+# Run the symbolic analysis only when the cheaper iterative method is predicted to cost more than this
+# many analyses: below it the analysis alone would eat the margin a direct solve could win.
+_ANALYSE_ABOVE = 4.0
+# Without CHOLMOD's column counts (libcholmod not loadable by ctypes) the older rule: CG when the
+# Gershgorin bound kappa is at most 18 (N / 20k)^0.8 (crossover measured on depth-camera clouds) ...
 _CG_KAPPA_WITH_CHOLMOD = 18.0
 _CG_KAPPA_N_REF = 20_000
 _CG_KAPPA_N_EXPONENT = 0.8
@@ -237,14 +260,180 @@ def graph_laplacian(W) -> sp.csr_matrix:
 # ----------------------------------------------------------------------------------------------
 # graph scene flow
 # ----------------------------------------------------------------------------------------------
+class _CholmodCounts:
+    """CHOLMOD's symbolic column counts through ctypes (scikit-sparse 0.4 does not expose them).
+
+    ``colcounts(A, perm)`` returns the number of non-zeros of every column of the Cholesky factor
+    of ``A[perm][:, perm]`` (diagonal included), computed by libcholmod's own ``cholmod_etree``,
+    ``cholmod_postorder`` and ``cholmod_rowcolcounts`` (Gilbert, Ng & Peyton: O(nnz(A)) time, no
+    numeric work) on the library scikit-sparse is linked with. The first use checks the binding on
+    two matrices with known fill (a path: 2n - 1; a dense 5 x 5: 15); if that fails or the library
+    cannot be loaded, ``ok`` is False and ``solver="auto"`` falls back to the condition-bound rule.
+    """
+
+    def __init__(self):
+        self.ok = False
+        try:
+            self._bind()
+            n = 10
+            path = sp.diags([np.full(n - 1, -1.0), np.full(n, 3.0), np.full(n - 1, -1.0)], [-1, 0, 1])
+            dense = sp.csc_matrix(np.ones((5, 5)) + 5.0 * np.eye(5))
+            self.ok = True
+            ok_path = int(self.colcounts(path, np.arange(n)).sum()) == 2 * n - 1
+            ok_dense = int(self.colcounts(dense, np.arange(5)).sum()) == 15
+            self.ok = ok_path and ok_dense
+        except Exception:  # pragma: no cover - depends on the environment
+            self.ok = False
+
+    def _bind(self) -> None:
+        import ctypes
+        import ctypes.util
+
+        class Sparse(ctypes.Structure):  # cholmod_sparse (SuiteSparse 4-7)
+            _fields_ = [("nrow", ctypes.c_size_t), ("ncol", ctypes.c_size_t), ("nzmax", ctypes.c_size_t),
+                        ("p", ctypes.c_void_p), ("i", ctypes.c_void_p), ("nz", ctypes.c_void_p),
+                        ("x", ctypes.c_void_p), ("z", ctypes.c_void_p), ("stype", ctypes.c_int),
+                        ("itype", ctypes.c_int), ("xtype", ctypes.c_int), ("dtype", ctypes.c_int),
+                        ("sorted", ctypes.c_int), ("packed", ctypes.c_int)]
+
+        lib = None
+        for name in ("libcholmod.so.3", ctypes.util.find_library("cholmod")):
+            if name:
+                try:
+                    lib = ctypes.CDLL(name)
+                    break
+                except OSError:
+                    continue
+        if lib is None:
+            raise OSError("libcholmod not found")
+        vp = ctypes.c_void_p
+        lib.cholmod_start.argtypes = lib.cholmod_finish.argtypes = [vp]
+        lib.cholmod_etree.argtypes = [ctypes.POINTER(Sparse), vp, vp]
+        lib.cholmod_postorder.argtypes = [vp, ctypes.c_size_t, vp, vp, vp]
+        lib.cholmod_postorder.restype = ctypes.c_long
+        lib.cholmod_rowcolcounts.argtypes = [ctypes.POINTER(Sparse), vp, ctypes.c_size_t, vp, vp, vp, vp,
+                                             vp, vp, vp]
+        self._lib, self._Sparse, self._ctypes = lib, Sparse, ctypes
+
+    def colcounts(self, A: sp.spmatrix, perm: np.ndarray) -> np.ndarray:
+        if not self.ok:
+            raise RuntimeError("CHOLMOD column counts unavailable")
+        ct, lib = self._ctypes, self._lib
+        n = A.shape[0]
+        C = sp.csr_matrix(A)[perm][:, perm]
+        keep = []
+
+        def pattern(M, stype):  # CHOLMOD_INT indices, CHOLMOD_PATTERN, sorted, packed
+            M = M.tocsc()
+            M.sort_indices()
+            ip = np.ascontiguousarray(M.indptr, dtype=np.int32)
+            ii = np.ascontiguousarray(M.indices, dtype=np.int32)
+            keep.append((ip, ii))
+            return self._Sparse(n, n, len(ii), ip.ctypes.data, ii.ctypes.data, None, None, None, stype,
+                                0, 0, 0, 1, 1)
+
+        upper, lower = pattern(sp.triu(C), 1), pattern(sp.tril(C), -1)
+        common = ct.create_string_buffer(1 << 16)  # > sizeof(cholmod_common) in every release
+        parent, post, count, first, level = (np.empty(n, dtype=np.int32) for _ in range(5))
+        lib.cholmod_start(common)
+        try:
+            ok = lib.cholmod_etree(ct.byref(upper), parent.ctypes.data, common)
+            ok = ok and lib.cholmod_postorder(parent.ctypes.data, n, None, post.ctypes.data, common) == n
+            ok = ok and lib.cholmod_rowcolcounts(ct.byref(lower), None, 0, parent.ctypes.data,
+                                                 post.ctypes.data, None, count.ctypes.data,
+                                                 first.ctypes.data, level.ctypes.data, common)
+        finally:
+            lib.cholmod_finish(common)
+        if not ok:
+            raise RuntimeError("cholmod_rowcolcounts failed")
+        return count.astype(np.int64)
+
+
+_COUNTS: list = []  # the one _CholmodCounts, made on first use
+
+
+def _cholmod_counts():
+    if not HAVE_CHOLMOD:
+        return None
+    if not _COUNTS:
+        _COUNTS.append(_CholmodCounts() if HAVE_CHOLMOD else None)
+    c = _COUNTS[0]
+    return c if c is not None and c.ok else None
+
+
+def _amg_preconditioner(A: sp.csr_matrix):
+    r"""One symmetric V-cycle of pyamg's smoothed-aggregation hierarchy on (N, C) blocks.
+
+    The hierarchy (aggregates, prolongators, Galerkin coarse matrices) is built once by
+    :func:`pyamg.smoothed_aggregation_solver` and reused for every column and every CG iteration. The
+    cycle runs on all columns at once: two damped-Jacobi sweeps (:math:`\omega = 2/3`) before and
+    after the coarse correction, a sparse LU on the coarsest level; pre- and post-smoothing are
+    adjoint, so the cycle is a symmetric positive definite :math:`M^{-1}` as CG needs.
+    """
+    ml = _pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", improve_candidates=None)
+    levels = ml.levels
+    dinv = [(2.0 / 3.0) / lv.A.diagonal() for lv in levels]
+    coarse = spla.splu(levels[-1].A.tocsc())
+
+    def cycle(lvl: int, B: np.ndarray) -> np.ndarray:
+        if lvl == len(levels) - 1:
+            return coarse.solve(B)
+        Al, w = levels[lvl].A, dinv[lvl][:, None]
+        X = w * B
+        X += w * (B - Al @ X)
+        X += levels[lvl].P @ cycle(lvl + 1, levels[lvl].R @ (B - Al @ X))
+        X += w * (B - Al @ X)
+        X += w * (B - Al @ X)
+        return X
+
+    return lambda R: cycle(0, np.ascontiguousarray(R))
+
+
+def _predicted_costs(A: sp.csr_matrix, kappa: float) -> dict:
+    """Iterative costs of the cost model, in Jacobi-CG iterations (see graph_scene_flow, Notes)."""
+    costs = {"cg": _CG_ITERS_PER_SQRT_KAPPA * np.sqrt(kappa)}
+    if HAVE_PYAMG:
+        costs["amg"] = _AMG_SETUP + _AMG_PER_ITER * _AMG_ITERS_SCALE * kappa**_AMG_ITERS_EXPONENT
+    return costs
+
+
+def _auto_choice(A: sp.csr_matrix, kappa: float) -> tuple[str, object]:
+    """``solver="auto"``: the method the fill-based cost model predicts fastest, and its analysis.
+
+    Returns ``(solver, factor)``; ``factor`` is scikit-sparse's symbolic factor (AMD ordering) when the
+    analysis was run and CHOLMOD chosen, so the numeric factorisation reuses it, else None.
+    """
+    iterative = _predicted_costs(A, kappa)
+    best_iter = min(iterative, key=iterative.get)
+    counts = _cholmod_counts()
+    if counts is None:  # no column counts: the condition-bound rule (and AMG beyond it if available)
+        if kappa <= _cg_kappa_limit(A.shape[0]):
+            return "cg", None
+        if HAVE_PYAMG and iterative["amg"] < iterative["cg"]:
+            return "amg", None
+        return ("cholmod" if HAVE_CHOLMOD else "splu"), None
+    if iterative[best_iter] <= _ANALYSE_ABOVE * _ANALYSIS:
+        return best_iter, None
+    factor = _cholmod_analyze(A.tocsc(), mode="simplicial", ordering_method="amd")
+    c = counts.colcounts(A, factor.P()).astype(np.float64)
+    n = float(A.shape[0])
+    direct = float(c @ c) / (_FLOPS_PER_ITER_POINT * n) + float(c.sum()) / (_SOLVE_NNZ_PER_ITER_POINT * n)
+    if direct < iterative[best_iter]:
+        return "cholmod", factor
+    return best_iter, None
+
+
 def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
     """Return ``solve(B)`` for ``A X = B``, SPD sparse A; a direct method factorises A once here.
 
     ``solver`` as in :func:`graph_scene_flow`; several right-hand sides (or several calls, as in
-    :func:`iterative_graph_scene_flow`) share the one factorisation.
+    :func:`iterative_graph_scene_flow`) share the one factorisation (or AMG hierarchy).
     """
     if solver == "auto":
-        solver = "cg" if kappa <= _cg_kappa_limit(A.shape[0]) else ("cholmod" if HAVE_CHOLMOD else "splu")
+        solver, factor = _auto_choice(A, kappa)
+        if factor is not None:  # numeric factorisation on the analysis the choice was made from
+            factor.cholesky_inplace(A.tocsc())
+            return factor
     if solver == "cholmod":
         if not HAVE_CHOLMOD:
             raise ValueError("solver='cholmod' needs scikit-sparse (sksparse.cholmod), not importable")
@@ -253,13 +442,19 @@ def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
         return _cholmod_cholesky(A.tocsc(), mode="simplicial")
     if solver == "splu":
         return spla.splu(A.tocsc(), permc_spec="COLAMD").solve
+    precond = None
+    if solver == "amg":
+        if not HAVE_PYAMG:
+            raise ValueError("solver='amg' needs pyamg, not importable (pip install pyamg)")
+        precond = _amg_preconditioner(A)
     direct = []  # built only if CG ever fails
 
     def cg_solve(B: np.ndarray) -> np.ndarray:
         # ||x - x*|| / ||x*|| <= cond(A) ||r|| / ||b||, so a residual of tol / kappa bounds the error
         # by tol; the floor keeps the target above what rounding lets the true residual reach.
         rtol = max(tol / kappa, 8.0 * np.finfo(float).eps * kappa)
-        X, _, ok = block_pcg(A, B, rtol, maxiter=max(1000, 50 * int(np.sqrt(kappa)) + 100))
+        maxiter = 1000 if precond is not None else max(1000, 50 * int(np.sqrt(kappa)) + 100)
+        X, _, ok = block_pcg(A, B, rtol, maxiter=maxiter, precond=precond)
         if ok:
             return X
         warnings.warn(
@@ -275,7 +470,7 @@ def _spd_solver(A: sp.csr_matrix, solver: str, kappa: float, tol: float):
 
 
 def _cg_kappa_limit(n: int) -> float:
-    """Largest condition bound for which ``solver="auto"`` picks block CG on an N-point graph."""
+    """Largest condition bound for which the fallback rule (no column counts) picks block CG."""
     if not HAVE_CHOLMOD:
         return _CG_KAPPA_WITHOUT_CHOLMOD
     return _CG_KAPPA_WITH_CHOLMOD * (n / _CG_KAPPA_N_REF) ** _CG_KAPPA_N_EXPONENT
@@ -330,19 +525,18 @@ def graph_scene_flow(
         Affinity length scale (see :func:`knn_graph`; ignored when ``W`` is given).
     W : array_like or sparse, shape (N, N), optional
         Precomputed symmetric non-negative affinities; skips the graph construction.
-    solver : {"auto", "cholmod", "splu", "cg"}, keyword-only
-        ``"cholmod"``: sparse Cholesky (scikit-sparse), ``"splu"``: SuperLU (scipy), ``"cg"``:
-        Jacobi-preconditioned CG on the three columns at once. ``"auto"`` uses CG when the Gershgorin
-        bound :math:`\kappa = 1 + 2 \lambda d_{max} / \Delta t^2` on the condition number is at most
-        :math:`18 (N / 20000)^{0.8}` (1000 without CHOLMOD), else CHOLMOD (simplicial
-        :math:`LDL^\top`) if importable, else SuperLU — the crossover measured in
-        ``benchmarks/bench_graphflow.py``.
+    solver : {"auto", "cholmod", "splu", "cg", "amg"}, keyword-only
+        ``"cholmod"``: sparse Cholesky (scikit-sparse, simplicial :math:`LDL^\top`), ``"splu"``:
+        SuperLU (scipy), ``"cg"``: Jacobi-preconditioned CG on the three columns at once, ``"amg"``:
+        the same CG preconditioned by one V-cycle of a smoothed-aggregation multigrid hierarchy
+        (pyamg), built once for the three columns. ``"auto"`` picks the one a cost model predicts
+        fastest, deciding from the fill of the factor (see Notes).
     tol : float > 0, keyword-only
         For CG (default 1e-8; measured errors against CHOLMOD are 1e-9 to 1e-12, see
         ``benchmarks/results/graphflow.md``): the relative error of each column is at most ``tol``, by
         iterating to a relative residual :math:`\le` ``tol / kappa`` (floored at
         :math:`8 \epsilon \kappa`, the reach of double precision, which for very ill-conditioned systems
-        gives a weaker bound; ``"auto"`` sends those to a direct solver). Direct solvers ignore it.
+        gives a weaker bound). Direct solvers ignore it.
 
     Returns
     -------
@@ -353,7 +547,42 @@ def graph_scene_flow(
     ------
     ValueError
         Wrong shapes, empty clouds, NaN/inf, ``dt <= 0``, ``lam < 0``, ``k >= N`` (when a graph is
-        built, i.e. ``lam > 0`` and no ``W``), bad ``W`` or ``solver``; the message names the argument.
+        built, i.e. ``lam > 0`` and no ``W``), bad ``W`` or ``solver`` (or a solver whose package is
+        missing); the message names the argument.
+
+    Notes
+    -----
+    **How** ``solver="auto"`` **chooses.** Costs are counted in units of one Jacobi-CG iteration
+    on the three columns (a sparse product :math:`A B`, :math:`B \in \mathbb{R}^{N \times 3}`, and the
+    vector updates; :math:`\propto N` as kNN rows hold about :math:`k` non-zeros), with constants
+    measured in ``benchmarks/bench_graphflow.py`` as ratios of times in one run.
+
+    - Jacobi CG: with the Gershgorin bound :math:`\kappa = 1 + 2 \lambda d_{max} / \Delta t^2` on the
+      condition number, CG needs :math:`O(\sqrt\kappa)` iterations; measured to ``tol`` = 1e-8:
+      :math:`T_{cg} \approx 8 \sqrt{\kappa}`.
+    - AMG-CG (pyamg importable): multigrid removes most of the :math:`\kappa` dependence (10, 20 and
+      30–44 iterations at :math:`\kappa` = 20, 200, 2000), at about 4 CG iterations per V-cycle after
+      a set-up of about 35: :math:`T_{amg} \approx 35 + 16\,\kappa^{0.3}`.
+    - CHOLMOD: the cost is set by the fill, which the geometry decides and :math:`\kappa` does not
+      see. A kNN graph of a *surface* (one depth camera) behaves like a 2-D mesh: nested-dissection
+      separators of :math:`O(\sqrt N)` points, :math:`\operatorname{nnz}(L) = O(N \log N)`, work
+      :math:`O(N^{3/2})`. A *volumetric* cloud (LiDAR sweeps, merged views, samples of a solid)
+      behaves like a 3-D mesh: separators of :math:`O(N^{2/3})`, :math:`\operatorname{nnz}(L) =
+      O(N^{4/3})`, work :math:`O(N^2)` — at N = 100k about 7 times the non-zeros and 85 times the
+      work of a surface. CHOLMOD's symbolic analysis measures it before any numeric work: the AMD
+      ordering :math:`P`, the elimination tree of :math:`P A P^\top` and the column counts
+      :math:`c_j` of its factor (``cholmod_rowcolcounts``, :math:`O(\operatorname{nnz}(A))`). The
+      simplicial :math:`LDL^\top` costs about :math:`\sum_j c_j^2` multiply-adds and the three
+      solves :math:`6 \sum_j c_j`, so :math:`T_{chol} \approx \sum_j c_j^2 / (200 N) + \sum_j c_j /
+      (20 N)`, after an analysis of :math:`T_{an} \approx 15`.
+
+    The analysis is itself part of the call, so it runs only when the cheaper iterative method is
+    predicted at more than :math:`4 T_{an} = 60` (below that, even a free factorisation could not
+    win enough to pay for it). Then the smallest of :math:`T_{cg}, T_{amg}, T_{chol}` wins, and CHOLMOD's
+    numeric factorisation reuses the analysis it was chosen from. Without the column counts (libcholmod
+    not loadable through ctypes) the rule falls back to :math:`\kappa \le 18 (N / 20000)^{0.8}` for
+    CG, then AMG, then CHOLMOD/SuperLU. ``benchmarks/results/graphflow.md`` shows the choice against
+    every solver on surface and volumetric clouds.
 
     Examples
     --------
