@@ -249,7 +249,7 @@ def run_demo(
         pair.seconds[RGBD_METHOD] = t_rgbd
         t0 = time.perf_counter()
         Z, V = detections_from_clusters(X, pair.clusters, rgbd, cfg, next_points=nxt[0], dt=dt)
-        C = detection_velocity_covariances(X, pair.clusters, rgbd, Z, dt)
+        C = detection_velocity_covariances(X, pair.clusters, rgbd, Z, dt, min_std=cfg.velocity_min_std)
         pair.seconds["detection"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         reported = tracker.step(Z, V, C)
