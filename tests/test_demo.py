@@ -594,12 +594,14 @@ def test_report_shows_the_ablation_table(demo_out, summary):
     assert "| tracker | MOTA | IDF1 | ID switches |" in md
 
 
-def test_input_sequence_writes_tracks_csv_from_the_trackers_history(tmp_path, monkeypatch):
-    """--input (TUM layout): tracks.csv read back equals the demo tracker's history row by row, the
-    ablation is skipped with a note, and the tracks sit on the objects of the sequence."""
+@pytest.mark.parametrize("layout", ["tum", "stereo"])
+def test_input_sequence_writes_tracks_csv_from_the_trackers_history(layout, tmp_path, monkeypatch):
+    """--input (TUM layout, or stereo with disparities): tracks.csv read back equals the demo tracker's
+    history row by row, the ablation is skipped with a note, and the tracks sit on the objects."""
     import flowtrack.tracking as tracking_mod
-    from flowtrack.rgbd_io import write_tum_sequence
+    from flowtrack.rgbd_io import write_pfm
     from flowtrack_course.demo.inputs import surface_centroids
+    from test_rgbd_io import _write_tum  # the TUM layout written with PIL alone (not by flowtrack)
 
     made = []
 
@@ -611,13 +613,22 @@ def test_input_sequence_writes_tracks_csv_from_the_trackers_history(tmp_path, mo
     monkeypatch.setattr(tracking_mod, "MultiObjectTracker", Spy)
     n = 7
     scene = make_scene(n_objects=2, n_frames=n, image_size=(96, 128), seed=3)
-    seq = write_tum_sequence(tmp_path / "seq", [f.rgb for f in scene.frames], [f.depth for f in scene.frames],
-                             [100.0 + i * scene.dt for i in range(n)], depth_scale=1000.0)
     cam = scene.camera
+    if layout == "tum":
+        seq = _write_tum(tmp_path / "seq", scene)
+        extra = []
+    else:
+        seq, B = tmp_path / "stereo", 0.1
+        for sub in ("left", "disparity"):
+            (seq / sub).mkdir(parents=True)
+        for i, f in enumerate(scene.frames):
+            Image.fromarray(f.rgb).save(seq / "left" / f"{i:03d}.png")
+            write_pfm(seq / "disparity" / f"{i:03d}.pfm", cam.fx * B / f.depth)
+        extra = ["--stereo", "--baseline", str(B), "--dt", str(scene.dt)]
     out = tmp_path / "out"
     assert main(["demo", "--out", str(out), "--input", str(seq), "--intrinsics",
-                 f"{cam.fx},{cam.fy},{cam.cx},{cam.cy}", "--depth-scale", "1000", "--frames", str(n),
-                 "--no-real-data", "--no-gif", "--no-progress"]) == 0
+                 f"{cam.fx},{cam.fy},{cam.cx},{cam.cy}", *extra, "--frames", str(n), "--no-real-data",
+                 "--no-gif", "--no-progress"]) == 0
     assert len(made) == 1  # the demo's tracker (the ablation is skipped: no ground truth)
     trk = made[0]
     header, rows = _read_tracks(out / "tracks.csv")
