@@ -163,3 +163,63 @@ def test_predict_ahead_is_F_to_the_n_on_every_live_track_and_leaves_the_tracker_
         assert t.id == tid and np.array_equal(t.x, x) and np.array_equal(t.P, P)
     with pytest.raises(ValueError, match="n"):
         trk.predict_ahead(0)
+
+
+# --------------------------------------------------------------------------------------------------
+# flowtrack.pipeline: the RGB-D flow at a cloud's points, and clustering a given flow
+@pytest.fixture(scope="module")
+def rgbd_pair():
+    scene = make_scene(n_objects=2, n_frames=2, image_size=(96, 128), seed=1)
+    return scene.frames, scene.camera, scene.dt
+
+
+def test_rgbd_cloud_flow_lines_up_with_the_pixels_and_beats_nearest_neighbour(rgbd_pair):
+    from flowtrack.camera import backproject
+    from flowtrack.pipeline import rgbd_cloud_flow
+    from flowtrack.rgbd_flow import rgbd_scene_flow
+
+    (f0, f1), cam, dt = rgbd_pair
+    dense = rgbd_scene_flow(f0.rgb, f0.depth, f1.rgb, f1.depth, cam, dt)  # (H, W, 3)
+    valid = f0.depth > 0
+    P = backproject(f0.depth, cam)[valid]
+    idx = np.random.default_rng(0).permutation(len(P))[: len(P) // 3]  # any subset, any order
+    v = rgbd_cloud_flow(f0.rgb, f0.depth, f1.rgb, f1.depth, cam, dt, P[idx])
+    np.testing.assert_array_equal(v, dense[valid][idx])  # each point gets its own pixel's velocity
+    # the issue-14 bar on moving points: at most half the nearest-neighbour error
+    gt, moving = f0.gt_flow[idx], np.linalg.norm(f0.gt_flow[idx], axis=1) > 0
+    nn = (nearest_neighbor_targets(P[idx], f1.points) - P[idx]) / dt
+    e_rgbd = scene_flow_metrics(v, gt, moving, dt=dt)["epe3d"]
+    e_nn = scene_flow_metrics(nn, gt, moving, dt=dt)["epe3d"]
+    assert e_rgbd <= 0.5 * e_nn, (e_rgbd, e_nn)
+    # a voxel-thinned cloud: the velocity of the nearest pixel point (brute force)
+    from flowtrack.pipeline import cloud_from_depth
+
+    V = cloud_from_depth(f0.depth, cam, voxel=0.02)
+    got = rgbd_cloud_flow(f0.rgb, f0.depth, f1.rgb, f1.depth, cam, dt, V)
+    d = np.sqrt(((V[:, None, :] - P[None, :, :]) ** 2).sum(-1))
+    nearest = d <= d.min(axis=1, keepdims=True) + 1e-12  # ties: a voxel mean halfway between pixels
+    same = (dense[valid][None, :, :] == got[:, None, :]).all(-1)
+    assert np.all((nearest & same).any(axis=1))
+    assert rgbd_cloud_flow(f0.rgb, f0.depth, f1.rgb, f1.depth, cam, dt, np.empty((0, 3))).shape == (0, 3)
+    with pytest.raises(ValueError, match="points"):
+        rgbd_cloud_flow(f0.rgb, f0.depth, f1.rgb, f1.depth, cam, dt, np.zeros((4, 2)))
+
+
+def test_scene_flow_and_clusters_clusters_a_given_flow(pair):
+    from sklearn.metrics import adjusted_rand_score
+
+    from flowtrack.pipeline import METHODS, RGBD_METHOD
+
+    X, Y, gt, labels, dt = pair
+    flows, clusters, _ = scene_flow_and_clusters(X, Y, dt, PipelineConfig(), flow=gt)
+    assert list(flows) == [*METHODS, RGBD_METHOD]
+    assert flows[RGBD_METHOD] is not None and np.array_equal(flows[RGBD_METHOD], gt)
+    # the true flow gives the true objects (static points -1, each moving object its cluster)
+    assert adjusted_rand_score(np.maximum(labels, 0), clusters + 1) > 0.95
+    moving = np.linalg.norm(gt, axis=1) > 0
+    assert np.all(clusters[~moving] == -1)
+    # rigid ICP per cluster on the true objects: near-exact on the moving points
+    rigid = scene_flow_metrics(flows["rigid per cluster"], gt, moving, dt=dt)["epe3d"]
+    assert rigid < 0.002, rigid
+    with pytest.raises(ValueError, match="flow"):
+        scene_flow_and_clusters(X, Y, dt, PipelineConfig(), flow=gt[:-1])

@@ -4,9 +4,12 @@ What the demo app (``flowtrack demo``) and lesson 6 share. Per frame pair :math:
 
 1. :func:`cloud_from_depth` back-projects a depth image, :math:`X = Z\,K^{-1}(u, v, 1)^\top`
    (optionally thinned by open3d's voxel grid to an even density);
-2. :func:`scene_flow_and_clusters` estimates scene flow by four methods (:data:`METHODS`: nearest
-   neighbour, graph, graph with re-matching, rigid ICP per motion cluster) and the motion clusters
-   of the re-matched graph flow;
+2. :func:`scene_flow_and_clusters` estimates scene flow by four point-cloud methods (:data:`METHODS`:
+   nearest neighbour, graph, graph with re-matching, rigid ICP per motion cluster) and the motion
+   clusters of the re-matched graph flow — or, given the dense RGB-D flow of the pair
+   (:func:`rgbd_cloud_flow`: :func:`flowtrack.rgbd_flow.rgbd_point_flow` at the cloud's points, the
+   row :data:`RGBD_METHOD`), the motion clusters of that flow, which sees the tangential motion
+   that nearest neighbours miss;
 3. :func:`detections_from_clusters` removes the support planes (:func:`support_planes`, open3d
    RANSAC) and turns each remaining connected piece of a cluster into a detection: its centroid
    :math:`\bar X` and mean rigid velocity :math:`\bar v` (the mean of a rigid motion's flow over a
@@ -40,14 +43,17 @@ from ._graph import as_labels
 from ._validation import as_array, nonnegative, positive, positive_int
 from .camera import backproject
 from .clustering import cluster_motion, drop_small_clusters
+from .rgbd_flow import rgbd_point_flow
 from .sceneflow import iterative_graph_scene_flow, nearest_neighbor_targets, rigid_flow_per_cluster
 
 __all__ = [
     "METHODS",
     "PipelineConfig",
+    "RGBD_METHOD",
     "cloud_from_depth",
     "detections_from_clusters",
     "open3d_threads",
+    "rgbd_cloud_flow",
     "scene_flow_and_clusters",
     "subsample",
     "support_planes",
@@ -55,6 +61,8 @@ __all__ = [
 
 #: The scene-flow methods of :func:`scene_flow_and_clusters`, in the order of the demo's tables.
 METHODS = ("nearest-neighbour", "graph", "graph + re-matching", "rigid per cluster")
+#: The row of :func:`scene_flow_and_clusters` given the RGB-D flow (:func:`rgbd_cloud_flow`).
+RGBD_METHOD = "variational RGB-D"
 
 
 @dataclass(frozen=True)
@@ -81,6 +89,17 @@ class PipelineConfig:
     gate_prob: float = 0.99  #: tracker's chi-square gate probability
     voxel: float = 0.01  #: voxel size for real clouds (open3d), 0 = off
     max_depth: float = 4.0  #: real input: farther points are dropped (m)
+    #: motion clustering of a given (RGB-D) flow: slower points are static. The dense RGB-D flow is
+    #: noisier on static surfaces than graph smoothing (median about 1 mm per frame, one point in eight
+    #: above 2 mm at 10 Hz on the demo's scene), so its threshold is higher than ``min_speed``.
+    rgbd_min_speed: float = 0.04
+    rgbd_sigma_v: float = 0.02  #: motion-similarity scale of the clustering of a given flow (m/s)
+    #: floor of a detection's velocity standard deviation per axis (m/s) in the tracker's velocity update
+    #: (:func:`flowtrack.motion.detection_velocity_covariances`' ``min_std``). The flow residuals of a
+    #: cluster measure its noise, not the estimator's error shared by the whole object (smoothing over
+    #: its outline, a visible surface whose centroid slides under occlusion): the RGB-D flow's
+    #: moving-point EPE3D is about 2.7 mm per frame (0.027 m/s) on the demo's scene.
+    velocity_min_std: float = 0.02
 
 
 def subsample(n: int, max_points: int, rng: np.random.Generator) -> np.ndarray:
@@ -135,7 +154,42 @@ def cloud_from_depth(depth, camera, *, max_depth: float | None = None, voxel: fl
     return P
 
 
-def scene_flow_and_clusters(X, Y, dt: float, config: PipelineConfig | None = None):
+def rgbd_cloud_flow(rgb_t, depth_t, rgb_t1, depth_t1, camera, dt, points, **options) -> np.ndarray:
+    r"""Velocities of a cloud of frame t from the dense RGB-D scene flow of the pair (t, t+1).
+
+    :func:`flowtrack.rgbd_flow.rgbd_point_flow` gives the velocity of the back-projection
+    :math:`X_p` of every valid pixel of ``depth_t``; each of ``points`` gets the velocity of the
+    nearest :math:`X_p` (a k-d tree). For a cloud of back-projected pixels (:func:`cloud_from_depth`
+    without ``voxel``, or any subset of it) that nearest point is the pixel itself, so the velocity
+    is exactly the estimator's; for a voxel-thinned cloud it is the velocity of the pixel closest to
+    the voxel's mean.
+
+    Parameters
+    ----------
+    rgb_t, depth_t, rgb_t1, depth_t1, camera, dt
+        As for :func:`flowtrack.sceneflow.rgbd_scene_flow` (images uint8 (H, W, 3) or grey (H, W),
+        depth in metres with 0 = invalid).
+    points : array_like, shape (N, 3)
+        A cloud of frame t in the camera frame (metres).
+    **options
+        Options of :func:`~flowtrack.sceneflow.rgbd_scene_flow`.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        Velocities (m/s) in the camera frame of frame t.
+    """
+    from scipy.spatial import cKDTree
+
+    P = as_array(points, "points", ("N", 3))
+    X, v = rgbd_point_flow(rgb_t, depth_t, rgb_t1, depth_t1, camera, dt, **options)
+    if len(P) == 0:
+        return np.empty((0, 3))
+    _, nn = cKDTree(X).query(P, workers=-1)
+    return v[nn]
+
+
+def scene_flow_and_clusters(X, Y, dt: float, config: PipelineConfig | None = None, flow=None):
     """Every scene-flow method of :data:`METHODS` on one pair of clouds, and the motion clusters.
 
     No index correspondence between the clouds is needed.
@@ -146,11 +200,17 @@ def scene_flow_and_clusters(X, Y, dt: float, config: PipelineConfig | None = Non
         The clouds at t and t + dt.
     dt : float
     config : PipelineConfig, optional
+    flow : ndarray, shape (N, 3), optional
+        A scene flow of ``X`` estimated from more than the clouds — the dense RGB-D flow
+        (:func:`rgbd_cloud_flow`). With it the motion clusters (and hence the rigid ICP per cluster)
+        come from this flow instead of the re-matched graph flow (thresholds ``rgbd_min_speed`` and
+        ``rgbd_sigma_v``), and it is returned as the row :data:`RGBD_METHOD`.
 
     Returns
     -------
     flows : dict
-        Method → (N, 3) velocities of ``X``'s points.
+        Method → (N, 3) velocities of ``X``'s points: the :data:`METHODS` in their order, then
+        :data:`RGBD_METHOD` when ``flow`` is given.
     clusters : ndarray, shape (N,) int
         Motion-cluster labels of ``X`` (−1 static; clusters smaller than ``min_cluster_points``
         sent to −1).
@@ -158,6 +218,8 @@ def scene_flow_and_clusters(X, Y, dt: float, config: PipelineConfig | None = Non
         The seconds each stage took.
     """
     cfg = config if config is not None else PipelineConfig()
+    if flow is not None:
+        flow = as_array(flow, "flow", (len(X), 3))
     flows = {}
     t0 = time.perf_counter()
     flows["nearest-neighbour"] = (nearest_neighbor_targets(X, Y) - X) / dt
@@ -168,10 +230,12 @@ def scene_flow_and_clusters(X, Y, dt: float, config: PipelineConfig | None = Non
     )
     flows["graph"] = passes[0]
     t3 = time.perf_counter()
-    labels = cluster_motion(
-        X, flows["graph + re-matching"], cfg.cluster_radius, cfg.sigma_v, min_speed=cfg.min_speed,
-        method="connected",
-    )
+    if flow is None:
+        labels = cluster_motion(X, flows["graph + re-matching"], cfg.cluster_radius, cfg.sigma_v,
+                                min_speed=cfg.min_speed, method="connected")
+    else:
+        labels = cluster_motion(X, flow, cfg.cluster_radius, cfg.rgbd_sigma_v, min_speed=cfg.rgbd_min_speed,
+                                method="connected")
     clusters = drop_small_clusters(labels, cfg.min_cluster_points)
     t4 = time.perf_counter()
     flows["rigid per cluster"] = rigid_flow_per_cluster(X, Y, clusters, dt, cfg.icp_threshold)
@@ -182,7 +246,10 @@ def scene_flow_and_clusters(X, Y, dt: float, config: PipelineConfig | None = Non
         "clustering": t4 - t3,
         "rigid per cluster": t5 - t4,
     }
-    return {m: flows[m] for m in METHODS}, clusters, seconds
+    out = {m: flows[m] for m in METHODS}
+    if flow is not None:
+        out[RGBD_METHOD] = flow
+    return out, clusters, seconds
 
 
 @contextmanager

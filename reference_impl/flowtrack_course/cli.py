@@ -73,13 +73,13 @@ def build_parser() -> argparse.ArgumentParser:
         "demo",
         help="run the main job (RGB-D -> scene flow -> clusters -> tracks -> prediction), write report.html",
         description=(
-            "RGB-D frames -> point clouds -> scene flow (nearest-neighbour, graph, graph + re-matching, "
-            "rigid "
-            "per cluster) -> motion clusters -> multi-object tracks -> prediction N frames ahead. Default "
+            "RGB-D frames -> point clouds -> scene flow (variational RGB-D; for comparison "
+            "nearest-neighbour, graph, graph + re-matching, rigid per cluster) -> motion clusters -> "
+            "multi-object tracks -> prediction N frames ahead. Default "
             "input: a synthetic sequence with exact ground truth (metrics tables); --input DIR: your own "
             "sequence in the TUM RGB-D layout (rgb/, depth/ 16-bit PNGs, rgb.txt, depth.txt) or, with "
-            "--stereo, left/, disparity/ (PFM or 16-bit PNG). Writes figures, tracks.gif, metrics.json, "
-            "metrics.md and a self-contained report.html to --out."
+            "--stereo, left/, disparity/ (PFM or 16-bit PNG). Writes figures, tracks.gif, tracks.csv, "
+            "metrics.json, metrics.md and a self-contained report.html to --out."
         ),
     )
     add_demo_arguments(demo)

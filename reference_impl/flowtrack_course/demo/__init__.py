@@ -7,20 +7,28 @@ scenario ``"mixed"``: a tall object crossing in front of another, a third one hi
 box for a while) everything is scored against the exact ground truth; ``--input DIR`` runs the same
 pipeline on a real sequence in the TUM RGB-D layout (or a stereo pair with disparity, see
 :mod:`flowtrack.rgbd_io`), without ground truth. ``flowtrack demo`` calls :func:`run_demo`, which
-writes figures, an animated GIF, ``metrics.json``, ``metrics.md`` and a self-contained
+writes figures, an animated GIF, ``tracks.csv`` (every track of every frame:
+``frame,track_id,status,x,y,z,vx,vy,vz``), ``metrics.json``, ``metrics.md`` and a self-contained
 ``report.html``.
 
 Per frame pair :math:`(t, t+1)`:
 
 1. back-project both depth images, :math:`X = Z\,K^{-1}(u, v, 1)^\top` (open3d's voxel grid thins
    real clouds to an even density);
-2. scene flow by four methods (nearest neighbour, graph, graph with re-matching, rigid ICP per
-   motion cluster); the metrics table compares them;
-3. motion clusters of the re-matched graph flow (connected components of the motion graph), the
-   support planes removed, one detection per connected piece (:mod:`flowtrack.pipeline`);
-4. one :meth:`~flowtrack.tracking.MultiObjectTracker.step` with the cluster centroids
-   :math:`\bar X_c` as detections and their mean rigid flow :math:`\bar v_c` as velocities (the
-   mean of a rigid motion's flow over a cluster is the flow of its centroid, exactly).
+2. dense variational RGB-D scene flow from both colour and depth images
+   (:func:`flowtrack.pipeline.rgbd_cloud_flow`), and for comparison four point-cloud methods
+   (nearest neighbour, graph, graph with re-matching, rigid ICP per motion cluster); the metrics
+   table compares them;
+3. motion clusters of the RGB-D flow (connected components of the motion graph), the support
+   planes removed, one detection per connected piece (:mod:`flowtrack.pipeline`);
+4. one :meth:`~flowtrack.tracking.MultiObjectTracker.step` with the pieces' centroids
+   :math:`\bar X_c` as detections and their mean RGB-D flow :math:`\bar v_c` as velocity
+   measurements (the mean of a rigid motion's flow over a piece is the flow of its centroid,
+   exactly), each with a covariance from its cluster's flow residuals
+   (:func:`flowtrack.motion.detection_velocity_covariances`; ``velocity_update=True``).
+
+With ground truth the same detections are also tracked with positions only, and
+``metrics.json["tracking_ablation"]`` compares the two (MOTA, IDF1, ID switches, prediction error).
 
 Finally each reported track is predicted ``predict_ahead`` frames with the tracker's own Kalman
 filter and no updates (:meth:`~flowtrack.tracking.MultiObjectTracker.predict_ahead`),

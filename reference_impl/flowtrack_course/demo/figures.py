@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from flowtrack.camera import optical_flow_from_scene_flow, project, projection_jacobian
-from flowtrack.pipeline import PipelineConfig
+from flowtrack.pipeline import RGBD_METHOD, PipelineConfig
 
 from .inputs import DemoInput
 
@@ -78,14 +78,14 @@ def plot_flow_field(inp: DemoInput, pair: FlowPair, path: Path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)
     uv = project(pair.points, cam)
     rng = np.random.default_rng(0)
+    est = ("variational RGB-D", pair.flows[RGBD_METHOD]) if RGBD_METHOD in pair.flows else (
+        "graph scene flow (re-matched)", pair.flows["graph + re-matching"])
     if pair.gt_flow is not None:
-        panels = [("ground-truth scene flow", pair.gt_flow),
-                  ("estimate (rigid ICP per motion cluster)", pair.flows["rigid per cluster"])]
+        panels = [("ground-truth scene flow", pair.gt_flow), (f"estimate ({est[0]})", est[1])]
         ref = pair.gt_flow
     else:
-        panels = [("graph scene flow (re-matched)", pair.flows["graph + re-matching"]),
-                  ("rigid ICP per motion cluster", pair.flows["rigid per cluster"])]
-        ref = pair.flows["graph + re-matching"]
+        panels = [est, ("rigid ICP per motion cluster", pair.flows["rigid per cluster"])]
+        ref = est[1]
     pick = np.flatnonzero(np.linalg.norm(ref, axis=1) > max(1e-6, 0.5 * PipelineConfig.min_speed))
     if len(pick) == 0:
         pick = np.arange(len(ref))

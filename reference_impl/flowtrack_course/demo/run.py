@@ -12,13 +12,17 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from flowtrack._validation import positive_int
+from flowtrack.motion import detection_velocity_covariances
 from flowtrack.pipeline import (
     METHODS,
+    RGBD_METHOD,
     detections_from_clusters,
     open3d_threads,
+    rgbd_cloud_flow,
     scene_flow_and_clusters,
 )
 from flowtrack.sceneflow import scene_flow_metrics
+from flowtrack.tracking_io import write_tracks_csv
 
 from ..report import render_markdown, write_report
 from .config import DEFAULT_NOISE, DemoConfig
@@ -36,7 +40,7 @@ from .sections import echo_summary, report_sections
 
 __all__ = [
     "DemoConfig", "FlowPair", "assign_tracks", "cluster_purity", "json_default", "json_number",
-    "motorcycle_section", "pooled_metrics", "run_demo",
+    "motorcycle_section", "pooled_metrics", "run_demo", "tracking_ablation_section",
 ]
 
 
@@ -107,7 +111,7 @@ def pooled_metrics(pairs: list[FlowPair], dt: float) -> dict[str, dict[str, dict
     gt = np.concatenate([p.gt_flow for p in pairs])
     moving = np.linalg.norm(gt, axis=1) > 0
     out = {}
-    for m in METHODS:
+    for m in [m for m in (*METHODS, RGBD_METHOD) if m in pairs[0].flows]:
         pred = np.concatenate([p.flows[m] for p in pairs])
         out[m] = {
             "all": scene_flow_metrics(pred, gt, dt=dt),
@@ -147,7 +151,21 @@ def run_demo(
     real_data: bool = True,
     gif: bool = True,
 ) -> dict:
-    """Run the demo; write figures, ``tracks.gif``, ``metrics.json``, ``metrics.md``, ``report.html``.
+    """Run the demo; write figures, ``tracks.gif``, ``tracks.csv``, ``metrics.json``, ``metrics.md``,
+    ``report.html``.
+
+    The scene flow that clustering and the tracker use is the dense variational RGB-D flow of each
+    frame pair (:func:`flowtrack.pipeline.rgbd_cloud_flow`), for the synthetic scene and for real
+    input alike. Each detection carries its piece's mean RGB-D velocity (the velocity of the
+    centroid under the cluster's rigid motion) and a velocity covariance from the cluster's flow
+    residuals (:func:`flowtrack.motion.detection_velocity_covariances`); the tracker updates with
+    position and velocity (``velocity_update=True``, constant-velocity model).
+
+    ``tracks.csv`` (:func:`flowtrack.tracking_io.write_tracks_csv`) holds every live track of every
+    processed frame t = 0 … n−2 (tentative and coasting included; the last frame has no flow pair),
+    camera frame of frame t, metres and m/s. With ground truth, ``metrics.json["tracking_ablation"]``
+    compares position-only and flow-aided tracking on the same detections
+    (:func:`flowtrack.tracking_eval.tracking_ablation`); real input has None there.
 
     Parameters
     ----------
@@ -210,27 +228,35 @@ def run_demo(
 
     from flowtrack.tracking import MultiObjectTracker
 
-    tracker = MultiObjectTracker(dt=dt, q=cfg.track_q, r=cfg.track_r, dim=3, min_hits=cfg.min_hits,
-                                 max_misses=cfg.max_misses, gate_prob=cfg.gate_prob)
+    tracker_options = dict(min_hits=cfg.min_hits, max_misses=cfg.max_misses, gate_prob=cfg.gate_prob)
+    tracker = MultiObjectTracker(dt=dt, q=cfg.track_q, r=cfg.track_r, dim=3, velocity_update=True,
+                                 **tracker_options)
     # a detection needs min_detection_points subsampled points (off the planes): ground truth ignores
     # objects with fewer visible pixels than that (as MOT benchmarks ignore heavily occluded people)
     n_valid = int(np.count_nonzero(inp.depth[0] > 0))
     min_pixels = int(np.ceil(cfg.min_detection_points * max(1.0, n_valid / cfg.max_points)))
     pairs: list[FlowPair] = []
     snapshots, hyp, gt_frames, n_detections = [], [], [], []
+    Zs, Vs, Cs = [], [], []  # per-frame detections, their velocities and velocity covariances
     nxt = frame_cloud(inp, 0, cfg, rng)
     for t in tqdm(range(inp.n - 1), desc="flowtrack demo", unit="frame", disable=not progress):
         (X, gt_flow, labels_gt), nxt = nxt, frame_cloud(inp, t + 1, cfg, rng)
         pair = FlowPair(t, X, gt_flow, labels_gt)
-        pair.flows, pair.clusters, pair.seconds = scene_flow_and_clusters(X, nxt[0], dt, cfg)
         t0 = time.perf_counter()
-        Z, V = detections_from_clusters(X, pair.clusters, pair.flows["rigid per cluster"], cfg,
-                                        next_points=nxt[0],
-                              dt=dt)
+        rgbd = rgbd_cloud_flow(inp.rgb[t], inp.depth[t], inp.rgb[t + 1], inp.depth[t + 1], cam, dt, X)
+        t_rgbd = time.perf_counter() - t0
+        pair.flows, pair.clusters, pair.seconds = scene_flow_and_clusters(X, nxt[0], dt, cfg, flow=rgbd)
+        pair.seconds[RGBD_METHOD] = t_rgbd
+        t0 = time.perf_counter()
+        Z, V = detections_from_clusters(X, pair.clusters, rgbd, cfg, next_points=nxt[0], dt=dt)
+        C = detection_velocity_covariances(X, pair.clusters, rgbd, Z, dt, min_std=cfg.velocity_min_std)
         pair.seconds["detection"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        reported = tracker.step(Z, V)
+        reported = tracker.step(Z, V, C)
         pair.seconds["tracker step"] = time.perf_counter() - t0
+        Zs.append(Z)
+        Vs.append(V)
+        Cs.append(C)
         n_detections.append(len(Z))
         snapshots.append([(tr.id, tr.position.copy(), tr.P[:3, :3].copy(), tr.status) for tr in reported])
         hyp.append({tr.id: tr.position.copy() for tr in reported if tr.misses == 0})
@@ -247,6 +273,7 @@ def run_demo(
         for k, p in gt_t.items():
             gt_hist.setdefault(k, []).append(p)
     last = inp.n - 2
+    write_tracks_csv(out / "tracks.csv", tracker)  # tracker frame k = input frame k
 
     # prediction N frames ahead: the tracker's own filter, predicted without updates
     ahead = tracker.predict_ahead(predict_ahead)
@@ -307,9 +334,12 @@ def run_demo(
                                if isinstance(v, (int, float, np.integer, np.floating))}
         summary["tracking"].update(max_dist_m=cfg.mot_max_dist, min_visible_pixels=min_pixels,
                                    ground_truth="centroid of each object's visible noiseless surface")
+        summary["tracking_ablation"] = tracking_ablation_section(scene, Zs, Vs, Cs, dt, cfg, min_pixels,
+                                                                 predict_ahead, tracker_options)
     else:
         summary["scene_flow"] = None
         summary["tracking"] = None
+        summary["tracking_ablation"] = None
     summary["tracks"] = {str(tid): len(rows) for tid, rows in hist.items()}
     summary["predict_ahead"] = predict_ahead
     summary["prediction"] = preds
@@ -358,6 +388,23 @@ def run_demo(
     summary["total_seconds"] = time.perf_counter() - started
     echo_summary(echo, inp, summary, sections, out)
     return summary
+
+
+def tracking_ablation_section(scene, detections, velocities, velocity_covs, dt, cfg, min_pixels: int,
+                              ahead: int, tracker_options: dict) -> dict:
+    """Position-only vs flow-aided tracking on the demo's own detections
+    (:func:`flowtrack.tracking_eval.tracking_ablation`).
+
+    The truth is the centroid of each object's visible surface in every rendered frame (the frames
+    past the last processed one score the ``ahead``-frame predictions); the flow-aided run is the
+    demo's tracker (position and RGB-D velocity with the per-detection covariances).
+    """
+    from flowtrack.tracking_eval import tracking_ablation
+
+    truth = [surface_centroids(f, min_pixels) for f in scene.frames]
+    res = tracking_ablation(detections, velocities, velocity_covs, truth, dt, q=cfg.track_q, r=cfg.track_r,
+                            ahead=ahead, max_dist=cfg.mot_max_dist, tracker_options=tracker_options)
+    return {k: {m: json_number(v) for m, v in r.items()} for k, r in res.items()}
 
 
 def json_number(v):
