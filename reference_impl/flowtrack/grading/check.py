@@ -61,8 +61,10 @@ def check_notebook(notebook: str | os.PathLike, *, stream: TextIO | None = None)
     path = Path(notebook)
     if not path.is_file():
         raise FileNotFoundError(f"notebook: no such file: {path}")
+    from .languages import find_language_exercise  # hook (issue 19): C++ / Octave source files
+
     try:
-        exercise = get_exercise(str(path))
+        exercise = find_language_exercise(path) or get_exercise(str(path))
     except (KeyError, ValueError) as exc:
         raise ValueError(f"notebook: {path.name} is not one of the course's exercises ({exc})") from None
     result = run_exercise(exercise, path, None, public_only=True)

@@ -235,6 +235,9 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
             dest.parent.mkdir(parents=True, exist_ok=True)
             nbformat.write(nb, dest)
             exercises.append(rel.as_posix())
+        from .languages import release_languages  # hook (issue 19): C++ / Octave stubs, same paths
+
+        exercises += release_languages(root / "exercises", tmp / "exercises")
         problems = scan_bundle(tmp)
         if problems:
             raise RuntimeError("release: the bundle would leak: " + "; ".join(problems[:10]))

@@ -20,6 +20,7 @@ from .exercises import (
     find_language_exercise,
     materialise,
     public_vectors,
+    release_languages,
     strip_solutions,
     submitted_exercises,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "find_language_exercise",
     "materialise",
     "public_vectors",
+    "release_languages",
     "strip_solutions",
     "submitted_exercises",
 ]

@@ -37,6 +37,7 @@ __all__ = [
     "find_language_exercise",
     "materialise",
     "public_vectors",
+    "release_languages",
     "strip_solutions",
     "submitted_exercises",
 ]
@@ -299,3 +300,20 @@ def submitted_exercises(submissions: str | Path) -> tuple[LanguageExercise, ...]
         return ()
     names = {p.name for p in root.glob("*/**/*") if p.suffix in {tc.extension for tc in TOOLCHAINS.values()}}
     return tuple(ex for ex in LANGUAGE_EXERCISES if Path(ex.notebook).name in names)
+
+
+def release_languages(source: Path, dest: Path) -> list[str]:
+    """Write the stubs of every language exercise found under ``source`` (the course's ``exercises/``)
+    into ``dest`` (the bundle's ``exercises/``) at the same relative paths, with the public tests,
+    the build files and each language's ``README.md``; return the student files written (relative)."""
+    written = []
+    for ex in LANGUAGE_EXERCISES:
+        folder = Path(source) / ex.language / ex.problem
+        if not (folder / ex.toolchain.source_name(ex.problem)).is_file():
+            continue
+        materialise(ex, folder, Path(dest) / ex.language / ex.problem, stub=True)
+        readme = Path(source) / ex.language / "README.md"
+        if readme.is_file():
+            (Path(dest) / ex.language / "README.md").write_text(readme.read_text(encoding="utf-8"), encoding="utf-8")
+        written.append(ex.notebook)
+    return written
