@@ -598,7 +598,6 @@ def grade_class(
     positive_int(jobs, "jobs")
     log = log or (lambda msg: print(msg, file=sys.stderr))
     from .exercises import EXERCISES
-
     from .languages import LANGUAGE_EXERCISES, submitted_exercises  # hook (issue 19)
 
     if exercises is None:  # the notebooks, and the language exercises someone in the class answered

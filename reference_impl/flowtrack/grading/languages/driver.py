@@ -72,7 +72,8 @@ def _ft_build():
         rc, text = _ft_exec(cmd, _SPEC["compile_seconds"], "build.log", "the build")
         if rc != 0:
             lines = text.strip().splitlines()
-            _STATE["error"] = "build failed (" + " ".join(cmd[:1]) + f", exit {rc}):\n" + "\n".join(lines[:40])
+            head = "build failed (" + cmd[0] + f", exit {rc}):\n"
+            _STATE["error"] = head + "\n".join(lines[:40])
             raise RuntimeError(_STATE["error"])
     _STATE["built"] = True
 
@@ -93,9 +94,11 @@ def run_cases(doc):
                 results[parts[1]] = {"ok": False, "value": None, "error": "unreadable output"}
                 continue
             ok = isinstance(value, dict)
-            results[parts[1]] = {"ok": ok, "value": value if ok else None, "error": "" if ok else "not an object"}
+            err = "" if ok else "not an object"
+            results[parts[1]] = {"ok": ok, "value": value if ok else None, "error": err}
         elif len(parts) >= 2 and parts[0] == "ERROR" and parts[1] not in results:
-            results[parts[1]] = {"ok": False, "value": None, "error": (parts[2] if len(parts) > 2 else "")[:500]}
+            err = (parts[2] if len(parts) > 2 else "")[:500]
+            results[parts[1]] = {"ok": False, "value": None, "error": err}
     if not results:
         tail = " | ".join(text.strip().splitlines()[-5:])[:800]
         raise RuntimeError(f"the program printed no result (exit {rc}): {tail}")

@@ -44,8 +44,15 @@ __all__ = [
 
 #: Modules the sandboxed child (and so anything the student's program starts) cannot load: the
 #: reference that computes the expected values, and solvers that would do the work.
-BLOCKED = ("flowtrack.kalman", "flowtrack.camera", "flowtrack.association", "flowtrack.tracking",
-           "flowtrack.ports", "flowtrack.symbolic", "scipy.optimize")
+BLOCKED = (
+    "flowtrack.kalman",
+    "flowtrack.camera",
+    "flowtrack.association",
+    "flowtrack.tracking",
+    "flowtrack.ports",
+    "flowtrack.symbolic",
+    "scipy.optimize",
+)
 
 PUBLIC_POINTS = 1.0
 HIDDEN_POINTS = 2.0
@@ -76,6 +83,14 @@ class LanguageExercise(Exercise):
         except UnicodeDecodeError:
             return [], [f"{name} is not UTF-8 text"]
         tc = self.toolchain
+        from ..isolation import choose_mode
+
+        mode, why = choose_mode()
+        if mode != "bwrap":  # the fallback's audit hook refuses to start compilers and interpreters
+            return [], [
+                f"{tc.title} answers are graded only under bubblewrap ({why}); run the public "
+                f"tests locally as the README of exercises/{self.language}/ says"
+            ]
         try:
             blobs = tc.blobs(self.problem)
         except Exception as exc:  # a missing toolchain is the grading machine's problem: say so
@@ -121,8 +136,9 @@ _GENERIC = {
 }
 
 
-def _score_cases(problem: Problem, cases: list[dict], expected: list[dict], outcome: Outcome,
-                 show: bool) -> tuple[float, str]:
+def _score_cases(
+    problem: Problem, cases: list[dict], expected: list[dict], outcome: Outcome, show: bool
+) -> tuple[float, str]:
     if not outcome.ok:
         return 0.0, outcome.error or "the program failed"
     value = outcome.value if isinstance(outcome.value, dict) else {}
@@ -141,8 +157,14 @@ def _score_cases(problem: Problem, cases: list[dict], expected: list[dict], outc
             got = as_float_array(outputs.get(name), want.shape)
             if got is None:
                 shape = as_float_array(outputs.get(name))
-                notes.append(f"case {case['id']}: {name} " + ("missing or not numbers" if shape is None
-                             else f"has shape {shape.shape}, expected {want.shape}"))
+                notes.append(
+                    f"case {case['id']}: {name} "
+                    + (
+                        "missing or not numbers"
+                        if shape is None
+                        else f"has shape {shape.shape}, expected {want.shape}"
+                    )
+                )
                 continue
             if _matches(got, want, problem.rtol, problem.atol):
                 good += 1
@@ -178,8 +200,12 @@ def _score_cases(problem: Problem, cases: list[dict], expected: list[dict], outc
 def _test(problem: Problem, hidden: bool) -> GradedTest:
     def build(rng: np.random.Generator):
         inputs = problem.hidden(rng) if hidden else problem.public()
-        cases = [{"id": f"{'hidden' if hidden else 'public'}-{i}", "input": inp} for i, inp in enumerate(inputs)]
-        expected = [{k: np.asarray(v, float) for k, v in problem.reference(c["input"]).items()} for c in cases]
+        cases = [
+            {"id": f"{'hidden' if hidden else 'public'}-{i}", "input": inp} for i, inp in enumerate(inputs)
+        ]
+        expected = [
+            {k: np.asarray(v, float) for k, v in problem.reference(c["input"]).items()} for c in cases
+        ]
         doc = {"problem": problem.name, "cases": cases}
 
         def scorer(outcomes: Sequence[Outcome]) -> tuple[float, str]:
@@ -191,15 +217,18 @@ def _test(problem: Problem, hidden: bool) -> GradedTest:
 
     build.__wrapped__ = problem.reference  # grade.exercises_hash hashes the module defining the problem
     name = f"{'hidden' if hidden else 'public'}: {problem.title}"
-    return GradedTest(name, f"test_{problem.name}", HIDDEN_POINTS if hidden else PUBLIC_POINTS, hidden, build,
-                      timeout=0.0)
+    return GradedTest(
+        name, f"test_{problem.name}", HIDDEN_POINTS if hidden else PUBLIC_POINTS, hidden, build, timeout=0.0
+    )
 
 
 def _exercise(language: str, problem: Problem) -> LanguageExercise:
     tc = TOOLCHAINS[language]
     timeout = tc.compile_seconds + tc.run_seconds + 30.0
-    tests = tuple(GradedTest(t.name, t.grade_id, t.points, t.hidden, t.build, timeout)
-                  for t in (_test(problem, False), _test(problem, True)))
+    tests = tuple(
+        GradedTest(t.name, t.grade_id, t.points, t.hidden, t.build, timeout)
+        for t in (_test(problem, False), _test(problem, True))
+    )
     return LanguageExercise(
         id=f"{language}_{problem.name}",
         title=f"{problem.title} ({tc.title})",
@@ -222,15 +251,18 @@ def find_language_exercise(key: str | Path) -> LanguageExercise | None:
     key = str(key)
     name = Path(key).name
     for ex in LANGUAGE_EXERCISES:
-        if key == ex.id or (name == Path(ex.notebook).name and (not Path(key).parent.name
-                                                                 or Path(key).parent.name == ex.problem)):
+        if key == ex.id or (
+            name == Path(ex.notebook).name
+            and (not Path(key).parent.name or Path(key).parent.name == ex.problem)
+        ):
             return ex
     return None
 
 
 # -- files of the bundle ---------------------------------------------------------------------------
-_BLOCK = re.compile(r"^([ \t]*)(?://|%|\(\*)\s*BEGIN SOLUTION.*?^[ \t]*(?://|%|\(\*)\s*END SOLUTION[^\n]*\n",
-                    re.M | re.S)
+_BLOCK = re.compile(
+    r"^([ \t]*)(?://|%|\(\*)\s*BEGIN SOLUTION.*?^[ \t]*(?://|%|\(\*)\s*END SOLUTION[^\n]*\n", re.M | re.S
+)
 _TODO = {"cpp": "// YOUR CODE HERE", "octave": "% YOUR CODE HERE"}
 
 
@@ -239,7 +271,8 @@ def strip_solutions(text: str, language: str) -> str:
 
     Examples
     --------
-    >>> print(strip_solutions("f\\n  % BEGIN SOLUTION\\n  x = 1;\\n  % END SOLUTION\\nend\\n", "octave"), end="")
+    >>> text = "f\\n  % BEGIN SOLUTION\\n  x = 1;\\n  % END SOLUTION\\nend\\n"
+    >>> print(strip_solutions(text, "octave"), end="")
     f
       % YOUR CODE HERE
     end
@@ -255,8 +288,15 @@ def public_vectors(problem: Problem) -> dict:
     cases = []
     for i, inp in enumerate(problem.public()):
         expected = {k: np.asarray(v, dtype=float).tolist() for k, v in problem.reference(inp).items()}
-        cases.append({"id": f"public-{i}", "input": inp, "expected": expected,
-                      "rtol": problem.rtol, "atol": problem.atol})
+        cases.append(
+            {
+                "id": f"public-{i}",
+                "input": inp,
+                "expected": expected,
+                "rtol": problem.rtol,
+                "atol": problem.atol,
+            }
+        )
     return {"problem": problem.name, "cases": cases}
 
 
@@ -278,7 +318,8 @@ def materialise(ex: LanguageExercise, source_dir: Path, dest: Path, *, stub: boo
         files["ft_harness.m"] = support_text("octave", "ft_harness.m")
         files["run_public_tests.m"] = (
             f"% Run the public tests of {ex.problem}:  octave-cli --norc run_public_tests.m\n"
-            f"ok = ft_harness('{ex.problem}', 'public.json', true);\nif ~ok\n  exit(1);\nend\n")
+            f"ok = ft_harness('{ex.problem}', 'public.json', true);\nif ~ok\n  exit(1);\nend\n"
+        )
     doc = public_vectors(PROBLEMS[ex.problem])
     files["public.json"] = dumps(doc)
     written = []
@@ -314,6 +355,8 @@ def release_languages(source: Path, dest: Path) -> list[str]:
         materialise(ex, folder, Path(dest) / ex.language / ex.problem, stub=True)
         readme = Path(source) / ex.language / "README.md"
         if readme.is_file():
-            (Path(dest) / ex.language / "README.md").write_text(readme.read_text(encoding="utf-8"), encoding="utf-8")
+            (Path(dest) / ex.language / "README.md").write_text(
+                readme.read_text(encoding="utf-8"), encoding="utf-8"
+            )
         written.append(ex.notebook)
     return written

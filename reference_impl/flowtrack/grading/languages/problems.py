@@ -52,7 +52,9 @@ class Problem:
 
 
 def _plain(d: dict) -> dict:
-    return {k: (np.asarray(v, dtype=float).tolist() if not np.isscalar(v) else float(v)) for k, v in d.items()}
+    return {
+        k: (np.asarray(v, dtype=float).tolist() if not np.isscalar(v) else float(v)) for k, v in d.items()
+    }
 
 
 # -- cv_model ------------------------------------------------------------------------------------------
@@ -89,10 +91,18 @@ CV_MODEL = Problem(
     rtol=1e-9,
     atol=1e-12,
     mistakes=(
-        ("cv-q-blockdiag", "Q is blkdiag(Q1d, Q1d), the ordering of a [px, vx, py, vy] state; this "
-         "state is [px, py, vx, vy], so Q = Q1d kron I2", _cv_blockdiag),
-        ("cv-q-continuous", "Q is the continuous white-noise model (dt^3/3, dt^2/2, dt); the course's "
-         "model holds the acceleration constant over a step: dt^4/4, dt^3/2, dt^2", _cv_continuous),
+        (
+            "cv-q-blockdiag",
+            "Q is blkdiag(Q1d, Q1d), the ordering of a [px, vx, py, vy] state; this "
+            "state is [px, py, vx, vy], so Q = Q1d kron I2",
+            _cv_blockdiag,
+        ),
+        (
+            "cv-q-continuous",
+            "Q is the continuous white-noise model (dt^3/3, dt^2/2, dt); the course's "
+            "model holds the acceleration constant over a step: dt^4/4, dt^3/2, dt^2",
+            _cv_continuous,
+        ),
     ),
 )
 
@@ -101,8 +111,9 @@ CV_MODEL = Problem(
 def _kalman_reference(inp: Inputs) -> Outputs:
     from flowtrack.kalman import KalmanFilter
 
-    kf = KalmanFilter(inp["F"], inp["H"], inp["Q"], inp["R"], np.asarray(inp["x"], float),
-                      np.asarray(inp["P"], float))
+    kf = KalmanFilter(
+        inp["F"], inp["H"], inp["Q"], inp["R"], np.asarray(inp["x"], float), np.asarray(inp["P"], float)
+    )
     kf.predict()
     kf.update(np.asarray(inp["z"], float))
     return {"x": kf.x.copy(), "P": kf.P.copy()}
@@ -154,10 +165,21 @@ KALMAN_STEP = Problem(
     rtol=1e-7,
     atol=1e-9,
     mistakes=(
-        ("kalman-no-q", "the prediction leaves out the process noise: P must become F P F' + Q", _kalman_no_q),
-        ("kalman-no-predict", "the update starts from x and P without predicting them first", _kalman_no_predict),
-        ("kalman-prior-cov", "P is the predicted covariance: the update must shrink it, P = (I - K H) P",
-         _kalman_prior_cov),
+        (
+            "kalman-no-q",
+            "the prediction leaves out the process noise: P must become F P F' + Q",
+            _kalman_no_q,
+        ),
+        (
+            "kalman-no-predict",
+            "the update starts from x and P without predicting them first",
+            _kalman_no_predict,
+        ),
+        (
+            "kalman-prior-cov",
+            "P is the predicted covariance: the update must shrink it, P = (I - K H) P",
+            _kalman_prior_cov,
+        ),
     ),
 )
 
@@ -179,8 +201,17 @@ def _jac_hidden(rng: np.random.Generator) -> list[Inputs]:
     for _ in range(3):
         X = rng.uniform(-1.0, 1.0, size=3)
         X[2] = rng.uniform(0.5, 4.0)
-        out.append(_plain({"X": X, "fx": rng.uniform(200, 900), "fy": rng.uniform(200, 900),
-                           "cx": rng.uniform(100, 400), "cy": rng.uniform(100, 300)}))
+        out.append(
+            _plain(
+                {
+                    "X": X,
+                    "fx": rng.uniform(200, 900),
+                    "fy": rng.uniform(200, 900),
+                    "cx": rng.uniform(100, 400),
+                    "cy": rng.uniform(100, 300),
+                }
+            )
+        )
     return out
 
 
@@ -188,13 +219,17 @@ PROJECTION_JACOBIAN = Problem(
     "projection_jacobian",
     "The Jacobian of the pinhole projection",
     ("J",),
-    lambda: [{"X": [1.0, 2.0, 4.0], "fx": 100.0, "fy": 100.0, "cx": 0.0, "cy": 0.0},
-             {"X": [-0.3, 0.25, 1.5], "fx": 525.0, "fy": 520.0, "cx": 319.5, "cy": 239.5}],
+    lambda: [
+        {"X": [1.0, 2.0, 4.0], "fx": 100.0, "fy": 100.0, "cx": 0.0, "cy": 0.0},
+        {"X": [-0.3, 0.25, 1.5], "fx": 525.0, "fy": 520.0, "cx": 319.5, "cy": 239.5},
+    ],
     _jac_hidden,
     _jac_reference,
     rtol=1e-9,
     atol=1e-9,
-    mistakes=(("jacobian-no-focal", "the focal lengths fx, fy are missing: u = fx X / Z + cx", _jac_no_focal),),
+    mistakes=(
+        ("jacobian-no-focal", "the focal lengths fx, fy are missing: u = fx X / Z + cx", _jac_no_focal),
+    ),
 )
 
 
@@ -230,9 +265,15 @@ def _maha_case(rng: np.random.Generator, m: int, n: int, prob: float) -> Inputs:
 
 
 def _maha_public() -> list[Inputs]:
-    return [{"z_pred": [0.0, 0.0], "S": [[4.0, 0.0], [0.0, 1.0]], "Z": [[2.0, 0.0], [0.0, 2.0], [6.0, 1.0]],
-             "gate": 9.21},
-            _maha_case(np.random.default_rng(7), 3, 4, 0.95)]
+    return [
+        {
+            "z_pred": [0.0, 0.0],
+            "S": [[4.0, 0.0], [0.0, 1.0]],
+            "Z": [[2.0, 0.0], [0.0, 2.0], [6.0, 1.0]],
+            "gate": 9.21,
+        },
+        _maha_case(np.random.default_rng(7), 3, 4, 0.95),
+    ]
 
 
 MAHALANOBIS_GATING = Problem(
@@ -245,13 +286,22 @@ MAHALANOBIS_GATING = Problem(
     rtol=1e-8,
     atol=1e-10,
     mistakes=(
-        ("mahalanobis-no-inverse", "d2 uses S itself; the distance weighs the residual by S^-1", _maha_no_inverse),
-        ("mahalanobis-sqrt", "d2 is the distance, not its square; the chi-square gate is on the square",
-         _maha_sqrt),
+        (
+            "mahalanobis-no-inverse",
+            "d2 uses S itself; the distance weighs the residual by S^-1",
+            _maha_no_inverse,
+        ),
+        (
+            "mahalanobis-sqrt",
+            "d2 is the distance, not its square; the chi-square gate is on the square",
+            _maha_sqrt,
+        ),
     ),
 )
 
-PROBLEMS: dict[str, Problem] = {p.name: p for p in (CV_MODEL, KALMAN_STEP, PROJECTION_JACOBIAN, MAHALANOBIS_GATING)}
+PROBLEMS: dict[str, Problem] = {
+    p.name: p for p in (CV_MODEL, KALMAN_STEP, PROJECTION_JACOBIAN, MAHALANOBIS_GATING)
+}
 
 
 def get_problem(name: str) -> Problem:

@@ -85,15 +85,24 @@ class Toolchain:
 
     def build_commands(self, problem: str) -> list[list[str]]:
         if self.language == "cpp":
-            return [["g++", *CXX_FLAGS, "-c", self.source_name(problem), "-o", "student.o"],
-                    ["g++", "student.o", "harness.o", "-o", "program"]]
+            return [
+                ["g++", *CXX_FLAGS, "-c", self.source_name(problem), "-o", "student.o"],
+                ["g++", "student.o", "harness.o", "-o", "program"],
+            ]
         return []
 
     def run_command(self, problem: str) -> list[str]:
         if self.language == "cpp":
             return ["./program", "cases.json"]
-        return ["octave-cli", "--norc", "--no-history", "--quiet", "--no-window-system", "--eval",
-                f"ft_harness('{problem}', 'cases.json', false);"]
+        return [
+            "octave-cli",
+            "--norc",
+            "--no-history",
+            "--quiet",
+            "--no-window-system",
+            "--eval",
+            f"ft_harness('{problem}', 'cases.json', false);",
+        ]
 
 
 TOOLCHAINS: dict[str, Toolchain] = {
@@ -144,8 +153,13 @@ def cpp_harness_object(problem: str) -> Path:
         with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
             Path(tmp, "harness.cpp").write_text(harness, encoding="utf-8")
             Path(tmp, "exercise.hpp").write_text(header, encoding="utf-8")
-            proc = subprocess.run(["g++", *flags, "-c", "harness.cpp", "-o", "harness.o"], cwd=tmp,
-                                  capture_output=True, text=True, timeout=600)
+            proc = subprocess.run(
+                ["g++", *flags, "-c", "harness.cpp", "-o", "harness.o"],
+                cwd=tmp,
+                capture_output=True,
+                text=True,
+                timeout=600,
+            )
             if proc.returncode != 0:
                 raise RuntimeError(f"the C++ harness of {problem} does not compile:\n{proc.stderr[-3000:]}")
             os.replace(Path(tmp, "harness.o"), obj)
