@@ -100,6 +100,7 @@ def test_mahalanobis_reference_matches_solve_and_the_gate():
         out = p.reference(inp)
         np.testing.assert_allclose(out["d2"], d2, rtol=1e-10)
         np.testing.assert_array_equal(out["inside"], (d2 <= inp["gate"]).astype(float))
+        assert 0.0 < out["inside"].mean() < 1.0  # a never- or always-gating answer cannot score
     assert p.reference(p.public()[0])["inside"].tolist() == [1.0, 1.0, 0.0]  # 1, 4, 9.25 vs 9.21
 
 

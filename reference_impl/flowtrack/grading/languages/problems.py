@@ -261,6 +261,12 @@ def _maha_case(rng: np.random.Generator, m: int, n: int, prob: float) -> Inputs:
     zp = rng.normal(scale=2.0, size=m)
     S = _spd(rng, m, float(rng.uniform(0.5, 3.0)))
     Z = zp + rng.normal(scale=2.5, size=(n, m))
+    # one detection surely inside the gate and one surely outside (d2 = |u|^2 for r = L u), so an
+    # answer that never (or always) gates cannot score on ``inside``
+    L = np.linalg.cholesky(S)
+    u = rng.normal(size=(2, m))
+    Z[0] = zp + L @ (0.2 * u[0] / np.linalg.norm(u[0]))
+    Z[-1] = zp + L @ (8.0 * u[1] / np.linalg.norm(u[1]))
     return _plain({"z_pred": zp, "S": S, "Z": Z, "gate": chi2_gate(m, prob)})
 
 
