@@ -157,8 +157,8 @@ def test_strip_solutions_and_unbalanced_markers():
 
 
 def test_every_language_exercise_has_an_instructor_source_with_markers():
-    assert {ex.language for ex in LANGUAGE_EXERCISES} == {"cpp", "octave"}
-    assert len(LANGUAGE_EXERCISES) == 8
+    assert {ex.language for ex in LANGUAGE_EXERCISES} == {"cpp", "java", "octave"}
+    assert len(LANGUAGE_EXERCISES) == 12
     for ex in LANGUAGE_EXERCISES:
         text = (SOURCES / ex.notebook).read_text()
         assert "BEGIN SOLUTION" in text and "END SOLUTION" in text, ex.notebook
@@ -190,9 +190,9 @@ def _write(tmp_path: Path, ex, text: str) -> Path:
     return p
 
 
-@pytest.mark.parametrize("toolchain", ["cpp", "octave"], indirect=True)
+@pytest.mark.parametrize("toolchain", ["cpp", "java", "octave"], indirect=True)
 def test_solutions_get_full_marks(toolchain):
-    problems = sorted(PROBLEMS) if toolchain == "octave" else ["kalman_step", "mahalanobis_gating"]
+    problems = sorted(PROBLEMS) if toolchain != "cpp" else ["kalman_step", "mahalanobis_gating"]
     for problem in problems:
         ex = _ex(toolchain, problem)
         r = run_exercise(ex, SOURCES / ex.notebook, "ana")
@@ -200,7 +200,7 @@ def test_solutions_get_full_marks(toolchain):
         assert r.score == r.max_score == 3.0, (ex.id, [t.message for t in r.tests], r.problems)
 
 
-@pytest.mark.parametrize("toolchain", ["cpp", "octave"], indirect=True)
+@pytest.mark.parametrize("toolchain", ["cpp", "java", "octave"], indirect=True)
 def test_stub_scores_zero_and_wrong_variant_gets_partial_credit_named(toolchain, tmp_path):
     ex = _ex(toolchain, "cv_model")
     source = (SOURCES / ex.notebook).read_text()
@@ -211,6 +211,11 @@ def test_stub_scores_zero_and_wrong_variant_gets_partial_credit_named(toolchain,
         wrong = source.replace(
             "Q.block<2, 2>(2 * i, 2 * k) = q * q1(i, k) * Eigen::Matrix2d::Identity();",
             "Q(2 * i + 0, 0) = 0.0; Q.setZero(); Q.block<2, 2>(0, 0) = q * q1; Q.block<2, 2>(2, 2) = q * q1;",
+        )
+    elif toolchain == "java":  # the continuous-time powers
+        wrong = source.replace(
+            "{{Math.pow(dt, 4) / 4, Math.pow(dt, 3) / 2}, {Math.pow(dt, 3) / 2, dt * dt}}",
+            "{{Math.pow(dt, 3) / 3, dt * dt / 2}, {dt * dt / 2, dt}}",
         )
     else:
         wrong = source.replace(
@@ -224,12 +229,12 @@ def test_stub_scores_zero_and_wrong_variant_gets_partial_credit_named(toolchain,
     assert all(f"mistake {mistake}:" in t.message for t in r.tests), [t.message for t in r.tests]
 
 
-@pytest.mark.parametrize("toolchain", ["cpp"], indirect=True)
+@pytest.mark.parametrize("toolchain", ["cpp", "java"], indirect=True)
 def test_compile_error_is_feedback_with_the_compilers_message(toolchain, tmp_path):
-    ex = _ex("cpp", "projection_jacobian")
-    bad = (
-        (SOURCES / ex.notebook).read_text().replace("J(0, 0) = fx * iz;", "J(0, 0) = fx * undeclared_thing;")
-    )
+    ex = _ex(toolchain, "projection_jacobian")
+    old = "J(0, 0) = fx * iz;" if toolchain == "cpp" else "J[0][0] = fx * iz;"
+    bad = (SOURCES / ex.notebook).read_text().replace(old, old.replace("iz", "undeclared_thing"))
+    assert "undeclared_thing" in bad
     r = run_exercise(ex, _write(tmp_path, ex, bad), "ana")
     assert r.score == 0.0
     public = next(t for t in r.tests if not t.hidden)
@@ -266,6 +271,20 @@ def test_materialise_solution_runs_the_octave_public_tests_locally(tmp_path):
     materialise(ex, SOURCES / "octave" / ex.problem, tmp_path, stub=False)
     proc = subprocess.run(
         [octave, "--norc", "run_public_tests.m"], cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.count(" PASS ") == 2
+
+
+def test_materialise_solution_runs_the_java_public_tests_locally(tmp_path):
+    import shutil
+    import subprocess
+
+    assert shutil.which("javac"), "a JDK must be installed (make test installs it)"
+    ex = _ex("java", "projection_jacobian")
+    materialise(ex, SOURCES / "java" / ex.problem, tmp_path, stub=False)
+    proc = subprocess.run(
+        ["sh", "run_public_tests.sh"], cwd=tmp_path, capture_output=True, text=True, timeout=300
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.count(" PASS ") == 2

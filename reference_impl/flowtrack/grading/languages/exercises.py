@@ -263,7 +263,7 @@ def find_language_exercise(key: str | Path) -> LanguageExercise | None:
 _BLOCK = re.compile(
     r"^([ \t]*)(?://|%|\(\*)\s*BEGIN SOLUTION.*?^[ \t]*(?://|%|\(\*)\s*END SOLUTION[^\n]*\n", re.M | re.S
 )
-_TODO = {"cpp": "// YOUR CODE HERE", "octave": "% YOUR CODE HERE"}
+_TODO = {"cpp": "// YOUR CODE HERE", "java": "// YOUR CODE HERE", "octave": "% YOUR CODE HERE"}
 
 
 def strip_solutions(text: str, language: str) -> str:
@@ -314,6 +314,21 @@ def materialise(ex: LanguageExercise, source_dir: Path, dest: Path, *, stub: boo
         files["exercise.hpp"] = support_text("cpp", f"{ex.problem}.hpp")
         files["harness.cpp"] = support_text("cpp", "harness.cpp")
         files["CMakeLists.txt"] = support_text("cpp", "CMakeLists.txt").replace("@PROBLEM@", ex.problem)
+    elif ex.language == "java":
+        from .toolchains import FILES, JAVA_CLASSPATH
+
+        files["Harness.java"] = support_text("java", "Harness.java")
+        (dest / "api").mkdir(exist_ok=True)
+        for p in sorted((FILES / "java" / "api").iterdir(), key=lambda p: p.name):
+            if p.name.endswith(".java") and p.name != name:  # the other exercises' signatures
+                files[f"api/{p.name}"] = p.read_text(encoding="utf-8")
+        files["run_public_tests.sh"] = (
+            f"#!/bin/sh\n# Compile and run the public tests of {ex.problem}:  sh run_public_tests.sh\n"
+            f"set -e\nCP={JAVA_CLASSPATH}\nmkdir -p classes\n"
+            'javac -encoding UTF-8 -cp "$CP" -sourcepath api -implicit:class -d classes '
+            f"Harness.java {name}\n"
+            f'java -cp "classes:$CP" Harness --check {ex.problem} public.json\n'
+        )
     else:
         files["ft_harness.m"] = support_text("octave", "ft_harness.m")
         files["run_public_tests.m"] = (

@@ -13,7 +13,13 @@ Eigen, the slow part of a build) is compiled once per problem, outside any sandb
 flags and the compiler's version) and handed to every student's sandbox as bytes; only the
 student's own file is compiled there. Octave needs no build.
 
-Debian packages: ``g++ libeigen3-dev nlohmann-json3-dev`` (C++), ``octave`` (Octave).
+The Java harness (``Harness.java``, JSON through gson) is compiled once, outside any sandbox, against
+the signature files ``files/java/api/*.java`` into ``<sandbox cache>/languages/java/<hash>.class``;
+in the sandbox only the student's class is compiled (``javac``), and ``java Harness`` runs with
+:data:`JVM_FLAGS`, which fit the sandbox's memory and process limits.
+
+Debian packages: ``g++ libeigen3-dev nlohmann-json3-dev`` (C++), ``octave`` (Octave),
+``openjdk-17-jdk-headless libgoogle-gson-java libejml-java`` (Java).
 """
 
 from __future__ import annotations
@@ -33,6 +39,28 @@ __all__ = ["LANGUAGES", "TOOLCHAINS", "Toolchain", "ToolchainMissing", "support_
 FILES = resources.files("flowtrack.grading.languages") / "files"
 EIGEN_INCLUDE = "/usr/include/eigen3"
 CXX_FLAGS = ("-std=c++17", "-O1", "-w", f"-I{EIGEN_INCLUDE}", "-I.")
+JAVA_JARS = ("gson.jar", "ejml-core.jar", "ejml-ddense.jar", "ejml-simple.jar")
+JAVA_CLASSPATH = ":".join(f"/usr/share/java/{j}" for j in JAVA_JARS)
+# The JVM inside the sandbox's limits (2 GiB of address space, 64 processes/threads): a small heap and
+# code cache, one GC thread, the C1 compiler only.
+JVM_FLAGS = (
+    "-Xmx256m",
+    "-Xss1m",
+    "-XX:ReservedCodeCacheSize=32m",
+    "-XX:CompressedClassSpaceSize=64m",
+    "-XX:MaxMetaspaceSize=128m",
+    "-XX:+UseSerialGC",
+    "-XX:TieredStopAtLevel=1",
+    "-XX:CICompilerCount=1",
+    "-Xshare:auto",
+    "-Djava.awt.headless=true",
+)
+JAVAC_FLAGS = (*(f"-J{f}" for f in JVM_FLAGS), "-encoding", "UTF-8", "-nowarn")
+
+
+def java_class(problem: str) -> str:
+    """The Java class (and file stem) of ``problem``: ``cv_model`` -> ``CvModel``."""
+    return "".join(part.capitalize() for part in problem.split("_"))
 
 
 class ToolchainMissing(RuntimeError):
@@ -55,7 +83,9 @@ class Toolchain:
     run_seconds: float = 20.0
 
     def source_name(self, problem: str) -> str:
-        """The file the student writes for ``problem``."""
+        """The file the student writes for ``problem`` (Java: the class name, ``CvModel.java``)."""
+        if self.language == "java":
+            return java_class(problem) + self.extension
         return f"{problem}{self.extension}"
 
     def check(self) -> None:
@@ -75,12 +105,16 @@ class Toolchain:
         """The grader's files written beside the student's (name -> text)."""
         if self.language == "cpp":
             return {"exercise.hpp": support_text("cpp", f"{problem}.hpp")}
+        if self.language == "java":
+            return {}
         return {"ft_harness.m": support_text("octave", "ft_harness.m")}
 
     def blobs(self, problem: str) -> dict[str, bytes]:
         """Cached binary artefacts of the grader's own sources (name -> bytes)."""
         if self.language == "cpp":
             return {"harness.o": cpp_harness_object(problem).read_bytes()}
+        if self.language == "java":
+            return {"Harness.class": java_harness_class().read_bytes()}
         return {}
 
     def build_commands(self, problem: str) -> list[list[str]]:
@@ -89,11 +123,15 @@ class Toolchain:
                 ["g++", *CXX_FLAGS, "-c", self.source_name(problem), "-o", "student.o"],
                 ["g++", "student.o", "harness.o", "-o", "program"],
             ]
+        if self.language == "java":
+            return [["javac", *JAVAC_FLAGS, "-cp", JAVA_CLASSPATH, "-d", ".", self.source_name(problem)]]
         return []
 
     def run_command(self, problem: str) -> list[str]:
         if self.language == "cpp":
             return ["./program", "cases.json"]
+        if self.language == "java":
+            return ["java", *JVM_FLAGS, "-cp", ".:" + JAVA_CLASSPATH, "Harness", problem, "cases.json"]
         return [
             "octave-cli",
             "--norc",
@@ -108,6 +146,13 @@ class Toolchain:
 TOOLCHAINS: dict[str, Toolchain] = {
     "cpp": Toolchain("cpp", "C++ (Eigen)", ".cpp", ("g++", "libeigen3-dev", "nlohmann-json3-dev"), ("g++",)),
     "octave": Toolchain("octave", "Octave (MATLAB syntax)", ".m", ("octave",), ("octave-cli",)),
+    "java": Toolchain(
+        "java",
+        "Java (plain arrays or EJML)",
+        ".java",
+        ("openjdk-17-jdk-headless", "libgoogle-gson-java", "libejml-java"),
+        ("javac", "java"),
+    ),
 }
 LANGUAGES: tuple[str, ...] = tuple(TOOLCHAINS)
 
@@ -163,4 +208,48 @@ def cpp_harness_object(problem: str) -> Path:
             if proc.returncode != 0:
                 raise RuntimeError(f"the C++ harness of {problem} does not compile:\n{proc.stderr[-3000:]}")
             os.replace(Path(tmp, "harness.o"), obj)
+    return obj
+
+
+def java_harness_class() -> Path:
+    """The cached ``Harness.class`` (compiled from the grader's ``Harness.java`` and signature files)."""
+    TOOLCHAINS["java"].check()
+    harness = support_text("java", "Harness.java")
+    api_dir = FILES / "java" / "api"
+    api = {
+        p.name: p.read_text(encoding="utf-8")
+        for p in sorted(api_dir.iterdir(), key=lambda p: p.name)
+        if p.name.endswith(".java")
+    }
+    version = subprocess.run(["javac", "-version"], capture_output=True, text=True, timeout=120)
+    text = "\0".join([harness, *api.values(), JAVA_CLASSPATH, version.stdout + version.stderr])
+    key = hashlib.sha256(text.encode()).hexdigest()[:24]
+    out_dir = _cache_dir("java")
+    obj = out_dir / f"Harness-{key}.class"
+    if obj.exists():
+        return obj
+    with open(out_dir / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if obj.exists():
+            return obj
+        with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
+            Path(tmp, "Harness.java").write_text(harness, encoding="utf-8")
+            for name, body in api.items():
+                Path(tmp, name).write_text(body, encoding="utf-8")
+            cmd = [
+                "javac",
+                "-encoding",
+                "UTF-8",
+                "-nowarn",
+                "-cp",
+                JAVA_CLASSPATH,
+                "-d",
+                "classes",
+                "Harness.java",
+                *api,
+            ]
+            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=600)
+            if proc.returncode != 0:
+                raise RuntimeError(f"the Java harness does not compile:\n{proc.stderr[-3000:]}")
+            os.replace(Path(tmp, "classes", "Harness.class"), obj)
     return obj
