@@ -1,12 +1,12 @@
-"""Issue 19's attacks in C++ and Octave: each scores as an honest wrong answer and changes nothing outside.
+"""Issue 19's attacks in C++, Java and Octave: each scores as an honest wrong answer, changes nothing outside.
 
 Every attack is a student's source file for a language exercise, graded by ``run_exercise`` under
 bubblewrap (required). The answers are the stubs' (all zeros), so an honest submission scores 0 and
-so must every attack: ``system()`` writing outside the sandbox, code at load time (a C++ global
-constructor, an Octave statement before the function), fork bombs, infinite loops, huge output,
-and reading the reference (the Python ``flowtrack.kalman`` inside the sandbox, which must be a stub:
-the control run with it unblocked proves the attack would otherwise earn full marks) or the
-instructor's solutions in the repository.
+so must every attack: ``system()`` / ``Runtime.exec`` writing outside the sandbox, code at load time
+(a C++ global constructor, a Java static initialiser, an Octave statement before the function),
+fork bombs, infinite loops, huge output, and reading the reference (the Python ``flowtrack.kalman``
+inside the sandbox, which must be a stub: the control run with it unblocked proves the attack would
+otherwise earn full marks) or the instructor's solutions in the repository.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 SOLUTION = {
     "cpp": REPO / "exercises" / "cpp" / "cv_model" / "cv_model.cpp",
     "octave": REPO / "exercises" / "octave" / "cv_model" / "cv_model.m",
+    "java": REPO / "exercises" / "java" / "cv_model" / "CvModel.java",
 }
 
 
@@ -41,6 +42,7 @@ def _bwrap_and_short_limits(monkeypatch):
     monkeypatch.setattr(toolchains_module, "TOOLCHAINS", short)
     monkeypatch.setitem(TOOLCHAINS, "cpp", short["cpp"])
     monkeypatch.setitem(TOOLCHAINS, "octave", short["octave"])
+    monkeypatch.setitem(TOOLCHAINS, "java", short["java"])
 
 
 def _programs_left() -> list[int]:
@@ -79,13 +81,20 @@ def _cpp_with(prelude: str) -> str:
     return _stub("cpp").replace('#include "exercise.hpp"\n', '#include "exercise.hpp"\n' + prelude, 1)
 
 
+def _java_with(static: str) -> str:
+    """The Java stub with a static initialiser (runs when the harness first touches the class)."""
+    return _stub("java").replace(
+        "    private CvModel() {}\n", "    static {\n" + static + "\n    }\n\n    private CvModel() {}\n", 1
+    )
+
+
 def _octave_with(body: str) -> str:
     """The Octave stub with ``body`` run at the start of the function."""
     return _stub("octave").replace("  F = zeros(4);\n", body + "\n  F = zeros(4);\n", 1)
 
 
-def test_honest_stub_scores_zero_in_both_languages(tmp_path):
-    for language in ("cpp", "octave"):
+def test_honest_stub_scores_zero_in_every_language(tmp_path):
+    for language in ("cpp", "java", "octave"):
         assert _grade(tmp_path / language, language, _stub(language))[0] == 0.0
 
 
@@ -97,7 +106,14 @@ def test_system_writing_outside_changes_nothing(tmp_path):
         f'static int attack = std::system("{cmd}");  // a global initialiser: runs before main\n'
     )
     octave = _octave_with(f"  system('{cmd}');")
-    for language, text in (("cpp", cpp), ("octave", octave)):
+    java = _java_with(
+        "        try {\n"
+        f'            Runtime.getRuntime().exec(new String[] {{"sh", "-c", "{cmd}"}}).waitFor();\n'
+        "        } catch (Exception e) {\n"
+        "            throw new RuntimeException(e);\n"
+        "        }"
+    )
+    for language, text in (("cpp", cpp), ("octave", octave), ("java", java)):
         score, messages = _grade(tmp_path / language, language, text)
         assert score == 0.0, messages
         for p in outside:
@@ -107,11 +123,19 @@ def test_system_writing_outside_changes_nothing(tmp_path):
 
 def test_fork_bombs_are_contained(tmp_path):
     cpp = _cpp_with(
-        "#include <unistd.h>\n"
-        "static int attack = [] { for (;;) fork(); return 0; }();  // ft-attack\n"
+        "#include <unistd.h>\nstatic int attack = [] { for (;;) fork(); return 0; }();  // ft-attack\n"
     )
     octave = _octave_with("  system('b() { b | b & }; b; sleep 100 # ft-attack');")
-    for language, text in (("cpp", cpp), ("octave", octave)):
+    java = _java_with(
+        "        for (;;) {\n"
+        "            try {\n"
+        '                new ProcessBuilder("sh", "-c", "sleep 100 # ft-attack").start();\n'
+        "            } catch (Exception e) {\n"
+        "                // keep trying: the process limit must hold\n"
+        "            }\n"
+        "        }"
+    )
+    for language, text in (("cpp", cpp), ("octave", octave), ("java", java)):
         score, messages = _grade(tmp_path / language, language, text)
         assert score == 0.0, messages
 
@@ -119,7 +143,8 @@ def test_fork_bombs_are_contained(tmp_path):
 def test_infinite_loops_time_out(tmp_path):
     cpp = _cpp_with("static volatile int attack = [] { volatile long i = 0; for (;;) ++i; return 0; }();\n")
     octave = _octave_with("  while true\n  end")
-    for language, text in (("cpp", cpp), ("octave", octave)):
+    java = _java_with("        for (long i = 0; ; ++i) { if (i < 0) break; }")
+    for language, text in (("cpp", cpp), ("octave", octave), ("java", java)):
         score, messages = _grade(tmp_path / language, language, text)
         assert score == 0.0, messages
         assert any("timed out" in m for m in messages), messages
@@ -133,7 +158,8 @@ def test_huge_output_is_cut(tmp_path):
         "    return 0;\n}();\n"
     )
     octave = _octave_with("  for i = 1:10000000\n    printf('OUTPUT x {}\\n');\n  end")
-    for language, text in (("cpp", cpp), ("octave", octave)):
+    java = _java_with('        for (long i = 0; i < 100000000L; ++i) System.out.println("OUTPUT x {}");')
+    for language, text in (("cpp", cpp), ("octave", octave), ("java", java)):
         score, messages = _grade(tmp_path / language, language, text)
         assert score == 0.0, messages
         # cut at the output cap, or stopped by the file-size limit / the time limit (then still cut)
@@ -157,11 +183,11 @@ def _cpp_steal() -> str:
         "void cv_model(double dt, double q, Eigen::Matrix4d& F, Eigen::Matrix4d& Q) {\n"
         '    std::string py = "/proc/" + std::to_string(getppid()) + "/exe";\n'
         f'    std::string cmd = py + " -I -S -c \\"{_STEAL}\\" ";\n'
-        "    cmd += std::to_string(dt) + \" \" + std::to_string(q);\n"
+        '    cmd += std::to_string(dt) + " " + std::to_string(q);\n'
         '    FILE* f = popen(cmd.c_str(), "r");\n'
         "    if (!f) return;\n"
-        "    for (int i = 0; i < 16; ++i) if (std::fscanf(f, \"%lf\", &F(i / 4, i % 4)) != 1) break;\n"
-        "    for (int i = 0; i < 16; ++i) if (std::fscanf(f, \"%lf\", &Q(i / 4, i % 4)) != 1) break;\n"
+        '    for (int i = 0; i < 16; ++i) if (std::fscanf(f, "%lf", &F(i / 4, i % 4)) != 1) break;\n'
+        '    for (int i = 0; i < 16; ++i) if (std::fscanf(f, "%lf", &Q(i / 4, i % 4)) != 1) break;\n'
         "    pclose(f);\n}\n"
     )
 
