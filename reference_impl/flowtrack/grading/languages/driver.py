@@ -10,7 +10,9 @@ call's cases (inputs only: expected values never enter the sandbox), under the r
 and with its output capped. The program's ``OUTPUT <id> <json>`` / ``ERROR <id> <message>``
 lines become the call's result: ``{id: {"ok": bool, "value": outputs | None, "error": str}}``.
 
-Everything the program does happens inside the sandbox (its uid, namespaces and resource limits
+A command word ``@PYTHON@`` stands for the sandbox's own Python interpreter, which then gets the
+child's module path in ``FT_PYTHONPATH`` (the Mathics3 harness). Everything the program does happens
+inside the sandbox (its uid, namespaces and resource limits
 apply to the compiler and to the program, which are the child's descendants); on a timeout the
 driver kills the program's whole process group.
 """
@@ -23,7 +25,7 @@ import json
 __all__ = ["driver_cell"]
 
 _TEMPLATE = r'''
-import base64 as _b64, json as _json, os as _os, signal as _signal, subprocess as _sp
+import base64 as _b64, json as _json, os as _os, signal as _signal, subprocess as _sp, sys as _sys
 
 _SPEC = _json.loads(@SPEC@)
 _STATE = {}
@@ -31,8 +33,10 @@ _STATE = {}
 
 def _ft_exec(cmd, timeout, out_path, what):
     with open(out_path, "wb") as out:
+        cmd = [_sys.executable if c == "@PYTHON@" else c for c in cmd]
+        env = {**_os.environ, **_SPEC["env"], "FT_PYTHONPATH": _os.pathsep.join(_sys.path)}
         proc = _sp.Popen(cmd, stdin=_sp.DEVNULL, stdout=out, stderr=_sp.STDOUT, start_new_session=True,
-                         env={**_os.environ, **_SPEC["env"]})
+                         env=env)
         try:
             rc = proc.wait(timeout=timeout)
         except _sp.TimeoutExpired:

@@ -263,7 +263,12 @@ def find_language_exercise(key: str | Path) -> LanguageExercise | None:
 _BLOCK = re.compile(
     r"^([ \t]*)(?://|%|\(\*)\s*BEGIN SOLUTION.*?^[ \t]*(?://|%|\(\*)\s*END SOLUTION[^\n]*\n", re.M | re.S
 )
-_TODO = {"cpp": "// YOUR CODE HERE", "java": "// YOUR CODE HERE", "octave": "% YOUR CODE HERE"}
+_TODO = {
+    "cpp": "// YOUR CODE HERE",
+    "java": "// YOUR CODE HERE",
+    "octave": "% YOUR CODE HERE",
+    "mathics": "(* YOUR CODE HERE *)",
+}
 
 
 def strip_solutions(text: str, language: str) -> str:
@@ -329,6 +334,8 @@ def materialise(ex: LanguageExercise, source_dir: Path, dest: Path, *, stub: boo
             f"Harness.java {name}\n"
             f'java -cp "classes:$CP" Harness --check {ex.problem} public.json\n'
         )
+    elif ex.language == "mathics":
+        files["ft_mathics.py"] = support_text("mathics", "ft_mathics.py")
     else:
         files["ft_harness.m"] = support_text("octave", "ft_harness.m")
         files["run_public_tests.m"] = (

@@ -19,13 +19,15 @@ in the sandbox only the student's class is compiled (``javac``), and ``java Harn
 :data:`JVM_FLAGS`, which fit the sandbox's memory and process limits.
 
 Debian packages: ``g++ libeigen3-dev nlohmann-json3-dev`` (C++), ``octave`` (Octave),
-``openjdk-17-jdk-headless libgoogle-gson-java libejml-java`` (Java).
+``openjdk-17-jdk-headless libgoogle-gson-java libejml-java`` (Java); Mathics3 is the Python package
+``mathics3`` (the ``ports`` extra), run by the sandbox's own interpreter (``ft_mathics.py``).
 """
 
 from __future__ import annotations
 
 import fcntl
 import hashlib
+import importlib.util
 import os
 import shutil
 import subprocess
@@ -91,6 +93,8 @@ class Toolchain:
     def check(self) -> None:
         """Raise :class:`ToolchainMissing` naming the Debian packages when a tool is missing."""
         missing = [e for e in self.executables if shutil.which(e) is None]
+        if self.language == "mathics" and importlib.util.find_spec("mathics") is None:
+            missing.append("the mathics Python package")
         if self.language == "cpp" and not Path(EIGEN_INCLUDE, "Eigen", "Dense").exists():
             missing.append("Eigen")
         if self.language == "cpp" and not Path("/usr/include/nlohmann/json.hpp").exists():
@@ -107,6 +111,8 @@ class Toolchain:
             return {"exercise.hpp": support_text("cpp", f"{problem}.hpp")}
         if self.language == "java":
             return {}
+        if self.language == "mathics":
+            return {"ft_mathics.py": support_text("mathics", "ft_mathics.py")}
         return {"ft_harness.m": support_text("octave", "ft_harness.m")}
 
     def blobs(self, problem: str) -> dict[str, bytes]:
@@ -132,6 +138,8 @@ class Toolchain:
             return ["./program", "cases.json"]
         if self.language == "java":
             return ["java", *JVM_FLAGS, "-cp", ".:" + JAVA_CLASSPATH, "Harness", problem, "cases.json"]
+        if self.language == "mathics":  # @PYTHON@: the sandbox's own interpreter (see the driver)
+            return ["@PYTHON@", "-I", "-S", "ft_mathics.py", problem, "cases.json", self.source_name(problem)]
         return [
             "octave-cli",
             "--norc",
@@ -152,6 +160,14 @@ TOOLCHAINS: dict[str, Toolchain] = {
         ".java",
         ("openjdk-17-jdk-headless", "libgoogle-gson-java", "libejml-java"),
         ("javac", "java"),
+    ),
+    "mathics": Toolchain(
+        "mathics",
+        "Mathematica (Mathics3)",
+        ".wl",
+        ('pip install -e ".[ports]" (PyPI mathics3)',),
+        (),
+        run_seconds=120.0,
     ),
 }
 LANGUAGES: tuple[str, ...] = tuple(TOOLCHAINS)
