@@ -30,6 +30,7 @@ SOLUTION = {
     "cpp": REPO / "exercises" / "cpp" / "cv_model" / "cv_model.cpp",
     "octave": REPO / "exercises" / "octave" / "cv_model" / "cv_model.m",
     "java": REPO / "exercises" / "java" / "cv_model" / "CvModel.java",
+    "mathics": REPO / "exercises" / "mathics" / "cv_model" / "cv_model.wl",
 }
 
 
@@ -38,11 +39,15 @@ def _bwrap_and_short_limits(monkeypatch):
     ok, why = bwrap_status()
     assert ok, f"bubblewrap must work for the attack tests (make test installs it): {why}"
     monkeypatch.setenv("FLOWTRACK_SANDBOX", "bwrap")
-    short = {k: dataclasses.replace(v, run_seconds=5.0) for k, v in TOOLCHAINS.items()}
+    # Mathics3 alone needs several seconds to start: a shorter limit would make its attacks vacuous
+    short = {
+        k: dataclasses.replace(v, run_seconds=30.0 if k == "mathics" else 5.0) for k, v in TOOLCHAINS.items()
+    }
     monkeypatch.setattr(toolchains_module, "TOOLCHAINS", short)
     monkeypatch.setitem(TOOLCHAINS, "cpp", short["cpp"])
     monkeypatch.setitem(TOOLCHAINS, "octave", short["octave"])
     monkeypatch.setitem(TOOLCHAINS, "java", short["java"])
+    monkeypatch.setitem(TOOLCHAINS, "mathics", short["mathics"])
 
 
 def _programs_left() -> list[int]:
@@ -88,13 +93,20 @@ def _java_with(static: str) -> str:
     )
 
 
+def _mathics_with(body: str) -> str:
+    """The Mathematica stub with ``body`` evaluated inside the function."""
+    return _stub("mathics").replace(
+        "  (* YOUR CODE HERE *)\n", "  (* YOUR CODE HERE *)\n  " + body + ";\n", 1
+    )
+
+
 def _octave_with(body: str) -> str:
     """The Octave stub with ``body`` run at the start of the function."""
     return _stub("octave").replace("  F = zeros(4);\n", body + "\n  F = zeros(4);\n", 1)
 
 
 def test_honest_stub_scores_zero_in_every_language(tmp_path):
-    for language in ("cpp", "java", "octave"):
+    for language in ("cpp", "java", "mathics", "octave"):
         assert _grade(tmp_path / language, language, _stub(language))[0] == 0.0
 
 
@@ -113,7 +125,8 @@ def test_system_writing_outside_changes_nothing(tmp_path):
         "            throw new RuntimeException(e);\n"
         "        }"
     )
-    for language, text in (("cpp", cpp), ("octave", octave), ("java", java)):
+    mathics = _mathics_with(f'Run["{cmd}"]')
+    for language, text in (("cpp", cpp), ("octave", octave), ("java", java), ("mathics", mathics)):
         score, messages = _grade(tmp_path / language, language, text)
         assert score == 0.0, messages
         for p in outside:
@@ -213,3 +226,14 @@ def test_reading_the_instructor_solutions_fails(tmp_path):
     assert SOLUTION["octave"].is_file() and os.access(SOLUTION["octave"], os.R_OK)
     score, messages = _grade(tmp_path, "octave", octave)
     assert score == 0.0, messages
+
+
+def test_mathics_fork_bomb_loop_and_output_are_contained(tmp_path):
+    attacks = {
+        "fork": _mathics_with('Run["b() { b | b & }; b; sleep 100 # ft-attack"]'),
+        "loop": _mathics_with("While[True, Null]"),
+        "output": _mathics_with('Do[Print["OUTPUT x {}"], {i, 10^7}]'),
+    }
+    for kind, text in attacks.items():
+        score, messages = _grade(tmp_path / kind, "mathics", text)
+        assert score == 0.0, (kind, messages)

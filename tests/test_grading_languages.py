@@ -306,3 +306,19 @@ def test_mathics_harness_runs_the_public_tests_locally(tmp_path):
     proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout.count(" PASS ") == 2
+
+
+@pytest.mark.parametrize("toolchain", ["octave"], indirect=True)
+def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
+    from flowtrack.grading.gradescope import SETUP_SH, run_submission
+
+    for pkg in ("g++", "libeigen3-dev", "octave", "openjdk-17-jdk-headless", "libgoogle-gson-java"):
+        assert pkg in SETUP_SH  # the bundle's image gets the toolchains from Debian
+    assert "[grading,ports]" in SETUP_SH  # and Mathics3
+    ex = _ex("octave", "cv_model")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "cv_model.m").write_text((SOURCES / ex.notebook).read_text())  # a flat upload
+    data = run_submission(tmp_path / "sub", tmp_path / "results.json", student="ana")
+    mine = [t for t in data["tests"] if t["name"].startswith(ex.id)]
+    assert len(mine) == 2 and all(t["status"] == "passed" for t in mine), mine
+    assert not any(t["name"].startswith("cpp_") for t in data["tests"])

@@ -38,6 +38,9 @@ set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq
 apt-get install -y -qq python3 python3-venv python3-pip bubblewrap libgomp1 libusb-1.0-0
+# hook (issue 19): the toolchains of answers in C++, Octave and Java (Mathematica: mathics3, the ports extra)
+apt-get install -y -qq g++ libeigen3-dev nlohmann-json3-dev octave openjdk-17-jdk-headless \
+    libgoogle-gson-java libejml-java
 python3 - <<'EOF'
 import sys
 if sys.version_info < (3, 11):
@@ -46,7 +49,7 @@ if sys.version_info < (3, 11):
 EOF
 python3 -m venv /autograder/venv
 /autograder/venv/bin/pip install -q --upgrade pip
-/autograder/venv/bin/pip install -q "/autograder/source/flowtrack[grading]"
+/autograder/venv/bin/pip install -q "/autograder/source/flowtrack[grading,ports]"
 # Student code runs as an unprivileged uid that must read the venv (numpy) but nothing else.
 chmod o+x /autograder
 chmod -R a+rX /autograder/venv
@@ -172,7 +175,10 @@ def run_submission(
     results = Path(results)
     try:
         if exercises is None:
-            from .exercises import EXERCISES as exercises
+            from .exercises import EXERCISES
+            from .languages import answered_exercises  # hook (issue 19)
+
+            exercises = (*EXERCISES, *answered_exercises(submission))
         with tempfile.TemporaryDirectory(prefix="flowtrack-gs-") as tmp:
             summary = grade_student(student, submission, tuple(exercises), tmp, force=True, secret=secret)
             data = json.loads((Path(tmp) / student / "results.json").read_text(encoding="utf-8"))
@@ -200,8 +206,10 @@ def main(argv: list[str] | None = None) -> int:
     exercises = None
     if args.exercises:
         from .exercises import get_exercise
+        from .languages import find_language_exercise  # hook (issue 19)
 
-        exercises = [get_exercise(i.strip()) for i in args.exercises.split(",") if i.strip()]
+        ids = [i.strip() for i in args.exercises.split(",") if i.strip()]
+        exercises = [find_language_exercise(i) or get_exercise(i) for i in ids]
     secret = None
     if args.secret_file:
         from .spec import read_secret

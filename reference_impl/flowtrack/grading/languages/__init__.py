@@ -17,6 +17,7 @@ from __future__ import annotations
 from .exercises import (
     LANGUAGE_EXERCISES,
     LanguageExercise,
+    answered_exercises,
     find_language_exercise,
     materialise,
     public_vectors,
@@ -28,6 +29,7 @@ from .problems import PROBLEMS
 from .toolchains import LANGUAGES, TOOLCHAINS, ToolchainMissing
 
 __all__ = [
+    "answered_exercises",
     "LANGUAGES",
     "LANGUAGE_EXERCISES",
     "LanguageExercise",

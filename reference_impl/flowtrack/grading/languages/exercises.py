@@ -32,6 +32,7 @@ from .toolchains import TOOLCHAINS, Toolchain, support_text
 
 __all__ = [
     "BLOCKED",
+    "answered_exercises",
     "LANGUAGE_EXERCISES",
     "LanguageExercise",
     "find_language_exercise",
@@ -352,6 +353,17 @@ def materialise(ex: LanguageExercise, source_dir: Path, dest: Path, *, stub: boo
     return written
 
 
+def answered_exercises(student_dir: str | Path) -> tuple[LanguageExercise, ...]:
+    """The language exercises one student's folder holds a source file of (by file name, anywhere
+    below it: Gradescope uploads are often flat)."""
+    root = Path(student_dir)
+    if not root.is_dir():
+        return ()
+    exts = {tc.extension for tc in TOOLCHAINS.values()}
+    names = {p.name for p in root.rglob("*") if p.suffix in exts}
+    return tuple(ex for ex in LANGUAGE_EXERCISES if Path(ex.notebook).name in names)
+
+
 def submitted_exercises(submissions: str | Path) -> tuple[LanguageExercise, ...]:
     """The language exercises at least one student folder of ``submissions`` holds a source file of.
 
@@ -359,10 +371,11 @@ def submitted_exercises(submissions: str | Path) -> tuple[LanguageExercise, ...]
     ``grades.csv`` as before, and every answered (exercise, language) item gets its column.
     """
     root = Path(submissions)
-    if not root.is_dir():
-        return ()
-    names = {p.name for p in root.glob("*/**/*") if p.suffix in {tc.extension for tc in TOOLCHAINS.values()}}
-    return tuple(ex for ex in LANGUAGE_EXERCISES if Path(ex.notebook).name in names)
+    found: set[str] = set()
+    for d in sorted(root.iterdir()) if root.is_dir() else []:
+        if d.is_dir() and not d.name.startswith("."):
+            found.update(ex.id for ex in answered_exercises(d))
+    return tuple(ex for ex in LANGUAGE_EXERCISES if ex.id in found)
 
 
 def release_languages(source: Path, dest: Path) -> list[str]:
