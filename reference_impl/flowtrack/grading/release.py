@@ -180,7 +180,8 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
     """Write the student bundle to ``out`` (see the module docstring).
 
     ``out`` must be missing, empty or an earlier bundle (it is then replaced); ``force`` replaces any
-    folder. Returns ``{"lessons": [...], "exercises": [...], "out": Path}``.
+    folder. Returns ``{"lessons": [...], "exercises": [...], "languages": [...], "out": Path}``
+    (``languages``: the C++/Java/Octave/Mathematica stubs written, relative to ``exercises/``).
 
     Raises
     ------
@@ -237,7 +238,7 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
             exercises.append(rel.as_posix())
         from .languages import release_languages  # hook (issue 19): C++ / Octave stubs, same paths
 
-        exercises += release_languages(root / "exercises", tmp / "exercises")
+        languages = release_languages(root / "exercises", tmp / "exercises")
         problems = scan_bundle(tmp)
         if problems:
             raise RuntimeError("release: the bundle would leak: " + "; ".join(problems[:10]))
@@ -247,4 +248,4 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return {"lessons": lessons, "exercises": exercises, "out": out}
+    return {"lessons": lessons, "exercises": exercises, "languages": languages, "out": out}
