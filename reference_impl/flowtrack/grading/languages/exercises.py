@@ -248,14 +248,18 @@ LANGUAGE_EXERCISES: tuple[LanguageExercise, ...] = tuple(
 
 
 def find_language_exercise(key: str | Path) -> LanguageExercise | None:
-    """The language exercise with id ``key`` or whose source file is ``key`` (a path or a name)."""
+    """The language exercise with id ``key`` or whose source file is named like ``key`` (a path or a
+    name; the file names are unique: ``cv_model.cpp``, ``CvModel.java``, ``cv_model.m``, ...).
+
+    Examples
+    --------
+    >>> find_language_exercise("somewhere/KalmanStep.java").id, find_language_exercise("ex05_cv_model")
+    ('java_kalman_step', None)
+    """
     key = str(key)
     name = Path(key).name
     for ex in LANGUAGE_EXERCISES:
-        if key == ex.id or (
-            name == Path(ex.notebook).name
-            and (not Path(key).parent.name or Path(key).parent.name == ex.problem)
-        ):
+        if key == ex.id or name == Path(ex.notebook).name:
             return ex
     return None
 
