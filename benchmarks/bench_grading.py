@@ -115,7 +115,7 @@ def run_nbgrader(course: Path, students: list[tuple[str, str]], subs: Path) -> t
 
 # --------------------------------------------------------------------------------------------------
 # Section (issue 19): answers in other languages. A class of N students x every language exercise
-# (C++ and Octave x 4 problems; a third solutions, a third stubs, a third partial: every other
+# (C++, Java, Octave, Mathematica x 4 problems; a third solutions, a third stubs, a third partial: every other
 # problem solved) graded by `flowtrack grade --jobs 2` with the toolchain caches warm (the C++
 # harness objects are built once, before timing). Peer, in the same run: the same toolchain work
 # without any sandbox (compile the student's file, link the cached harness, run it on the public
@@ -164,7 +164,8 @@ def run_direct(subs: Path, students: list[tuple[str, str]], work: Path) -> tuple
             (d / "cases.json").write_text(json.dumps(doc))
             for cmd in tc.build_commands(ex.problem):
                 subprocess.run(cmd, cwd=d, capture_output=True, timeout=300)
-            subprocess.run(tc.run_command(ex.problem), cwd=d, capture_output=True, timeout=300)
+            run = [sys.executable if c == "@PYTHON@" else c for c in tc.run_command(ex.problem)]
+            subprocess.run(run, cwd=d, capture_output=True, timeout=300)
             items += 1
     return time.perf_counter() - t0, items
 
@@ -181,6 +182,7 @@ def languages_main(args) -> int:
         tmp = Path(tmp)
         students = make_language_class(tmp / "subs", n)
         ft_wall, ft_totals = run_flowtrack(tmp / "subs", tmp / "out", jobs)
+        print(f"flowtrack grade --jobs {jobs}: {ft_wall:.1f} s for {n} students", flush=True)
         header = (tmp / "out" / "grades.csv").read_text().splitlines()[0].split(",")
         peer_wall, peer_items = run_direct(tmp / "subs", students[:n_peer], tmp / "direct")
     items = n * len(LANGUAGE_EXERCISES)
