@@ -113,13 +113,127 @@ def run_nbgrader(course: Path, students: list[tuple[str, str]], subs: Path) -> t
     return wall, totals
 
 
+# --------------------------------------------------------------------------------------------------
+# Section (issue 19): answers in other languages. A class of N students x every language exercise
+# (C++, Java, Octave, Mathematica x 4 problems; a third solutions, a third stubs, a third partial: every other
+# problem solved) graded by `flowtrack grade --jobs 2` with the toolchain caches warm (the C++
+# harness objects are built once, before timing). Peer, in the same run: the same toolchain work
+# without any sandbox (compile the student's file, link the cached harness, run it on the public
+# cases), one item after the other, on the first students; compared per item.
+
+
+def make_language_class(dest: Path, n_students: int) -> list[tuple[str, str]]:
+    from flowtrack_course.grading.languages import LANGUAGE_EXERCISES, strip_solutions
+
+    students = []
+    for s in range(n_students):
+        kind = KINDS[s % 3]
+        name = f"s{s:03d}_{kind}"
+        for i, ex in enumerate(LANGUAGE_EXERCISES):
+            text = (ROOT / "exercises" / ex.notebook).read_text()
+            if kind == "stub" or (kind == "partial" and i % 2):
+                text = strip_solutions(text, ex.language)
+            p = dest / name / "exercises" / ex.notebook
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(text)
+        students.append((name, kind))
+    return students
+
+
+def run_direct(subs: Path, students: list[tuple[str, str]], work: Path) -> tuple[float, int]:
+    """The peer: build and run every language item of ``students`` without a sandbox."""
+    import json
+
+    from flowtrack_course.grading.languages import LANGUAGE_EXERCISES, public_vectors
+    from flowtrack_course.grading.languages.problems import PROBLEMS
+
+    items = 0
+    t0 = time.perf_counter()
+    for name, _ in students:
+        for ex in LANGUAGE_EXERCISES:
+            tc = ex.toolchain
+            d = work / name / ex.id
+            d.mkdir(parents=True)
+            src = tc.source_name(ex.problem)
+            shutil.copy(subs / name / "exercises" / ex.notebook, d / src)
+            for rel, text in tc.support_files(ex.problem).items():
+                (d / rel).write_text(text)
+            for rel, data in tc.blobs(ex.problem).items():
+                (d / rel).write_bytes(data)
+            doc = public_vectors(PROBLEMS[ex.problem])
+            (d / "cases.json").write_text(json.dumps(doc))
+            for cmd in tc.build_commands(ex.problem):
+                subprocess.run(cmd, cwd=d, capture_output=True, timeout=300)
+            run = [sys.executable if c == "@PYTHON@" else c for c in tc.run_command(ex.problem)]
+            subprocess.run(run, cwd=d, capture_output=True, timeout=300)
+            items += 1
+    return time.perf_counter() - t0, items
+
+
+def languages_main(args) -> int:
+    from flowtrack_course.grading.languages import LANGUAGE_EXERCISES, TOOLCHAINS
+
+    n = args.students or (3 if args.quick else 20)
+    n_peer = 1 if args.quick else 2
+    jobs = 2
+    for ex in LANGUAGE_EXERCISES:  # warm the per-language caches (grader-made artefacts only)
+        ex.toolchain.blobs(ex.problem)
+    with tempfile.TemporaryDirectory(prefix="bench-grading-lang-") as tmp:
+        tmp = Path(tmp)
+        students = make_language_class(tmp / "subs", n)
+        ft_wall, ft_totals = run_flowtrack(tmp / "subs", tmp / "out", jobs)
+        print(f"flowtrack grade --jobs {jobs}: {ft_wall:.1f} s for {n} students", flush=True)
+        header = (tmp / "out" / "grades.csv").read_text().splitlines()[0].split(",")
+        peer_wall, peer_items = run_direct(tmp / "subs", students[:n_peer], tmp / "direct")
+    items = n * len(LANGUAGE_EXERCISES)
+    per_item, peer_per_item = ft_wall / items, peer_wall / peer_items
+    langs = sorted(TOOLCHAINS)
+    max_total = sum(ex.max_score for ex in LANGUAGE_EXERCISES)
+    by_kind = {k: sorted({ft_totals[s] for s, kk in students if kk == k}) for k in KINDS}
+    budget = 300 * n / 20
+    rows = [
+        "## Autograder, answers in other languages (`flowtrack grade`, issue 19)",
+        "",
+        f"{n} synthetic students x {len(LANGUAGE_EXERCISES)} language exercises ({', '.join(langs)} x "
+        f"{len(LANGUAGE_EXERCISES) // len(langs)} problems, {max_total:g} points; a third solutions, a "
+        "third stubs, a third partial). `flowtrack grade --jobs 2`: one bubblewrap sandbox per student "
+        "and exercise, compiling (C++) and running the student's file against public and hidden inputs; "
+        "the C++ harness objects (grader sources only) cached beforehand. Peer: the same builds and runs "
+        f"on the public inputs without any sandbox, one after the other, for {n_peer} students; per item.",
+        "",
+        "| grader | items | wall s | s / item |",
+        "|---|---:|---:|---:|",
+        f"| `flowtrack grade --jobs 2` | {items} | {ft_wall:.1f} | {per_item:.2f} |",
+        f"| direct build + run, no sandbox, 1 process | {peer_items} | {peer_wall:.1f} "
+        f"| {peer_per_item:.2f} |",
+        "",
+        f"Totals by kind (of {max_total:g}): " + "; ".join(f"{k} {v}" for k, v in by_kind.items()),
+        f"grades.csv columns: {', '.join(c for c in header if '_' in c)}",
+        "",
+        "| target | measured | met |",
+        "|---|---:|:---:|",
+        f"| {n} students x {len(LANGUAGE_EXERCISES)} items < {budget:.0f} s | {ft_wall:.1f} s | "
+        f"{'yes' if ft_wall < budget else 'no'} |",
+        f"| sandboxed, 2 jobs, per item vs direct, 1 process | {per_item / peer_per_item:.2f}x | info |",
+        "",
+        f"Python {platform.python_version()}, {platform.machine()}, {os.cpu_count()} CPUs, 1-min load "
+        f"average {os.getloadavg()[0]:.1f} at the end; {'quick' if args.quick else 'full'} run.",
+    ]
+    publish("grading_languages", "\n".join(rows) + "\n", args.quick)
+    return 1 if (args.check and ft_wall >= budget) else 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="6 students, 1 for nbgrader (smoke run)")
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
+    ap.add_argument("--languages", action="store_true",
+                    help="only the section on answers in other languages (20 students; quick: 3)")
     ap.add_argument("--students", type=int, default=None, help="class size (default 100; quick: 6)")
     ap.add_argument("--nbgrader-students", type=int, default=None, help="students for nbgrader (default 3)")
     args = ap.parse_args(argv)
+    if args.languages:
+        return languages_main(args)
     n = args.students or (6 if args.quick else 100)
     n_nb = args.nbgrader_students or (1 if args.quick else 3)
     jobs = 2

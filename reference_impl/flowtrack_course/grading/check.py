@@ -68,9 +68,11 @@ def check_notebook(notebook: str | os.PathLike, *, stream: TextIO | None = None)
     path = Path(notebook)
     if not path.is_file():
         raise FileNotFoundError(f"notebook: no such file: {path}")
+    from .languages import find_language_exercise  # hook (issue 19): C++ / Octave source files
+
     renamed_note = ""
     try:
-        exercise = get_exercise(str(path))
+        exercise = find_language_exercise(path) or get_exercise(str(path))
     except (KeyError, ValueError) as exc:
         # issue 18 hook: an LMS-renamed copy ("ex05_cv_model (1).ipynb") is checked, with the rename to make
         from .layout import suggest_rename

@@ -235,7 +235,9 @@ def run_exercise(
         raise TypeError(f"exercise must be an Exercise, got {type(exercise).__name__}")
     tests = [t for t in exercise.tests if not (public_only and t.hidden)]
     result = ExerciseResult(exercise.id, exercise.title, exercise.notebook)
-    cells, problems = _extract(Path(notebook), exercise.answer_cells)
+    # hook (issue 19): a language exercise (flowtrack_course.grading.languages) makes its own driver cell
+    extract = getattr(exercise, "extract_cells", None)
+    cells, problems = extract(Path(notebook)) if extract else _extract(Path(notebook), exercise.answer_cells)
     result.problems += problems
     if not cells:
         why = problems[0] if problems else "no answer cells"
@@ -645,8 +647,9 @@ def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_fa
     try:
         if exercises is None:
             from .exercises import get_exercise
+            from .languages import find_language_exercise  # hook (issue 19)
 
-            exercises = [get_exercise(i) for i in exercise_ids]
+            exercises = [find_language_exercise(i) or get_exercise(i) for i in exercise_ids]
         return grade_student(
             student, student_dir, exercises, out, force=force, hidden_visibility=hidden_visibility,
             ex_hash=ex_hash, sandbox_factory=sandbox_factory, secret=secret, hidden_paths=hidden,
@@ -718,11 +721,14 @@ def grade_class(
     positive_int(jobs, "jobs")
     log = log or (lambda msg: print(msg, file=sys.stderr))
     from .exercises import EXERCISES
+    from .languages import LANGUAGE_EXERCISES, submitted_exercises  # hook (issue 19)
 
-    exercises = tuple(EXERCISES if exercises is None else exercises)
+    if exercises is None:  # the notebooks, and the language exercises someone in the class answered
+        exercises = (*EXERCISES, *submitted_exercises(submissions))
+    exercises = tuple(exercises)
     hidden = tuple(str(Path(p).resolve()) for p in (submissions, out, *hidden_paths))
     # Workers look exercises up by id; exercises not in the registry (tests' fakes) grade in-process.
-    registry = {ex.id: ex for ex in EXERCISES}
+    registry = {ex.id: ex for ex in (*EXERCISES, *LANGUAGE_EXERCISES)}
     custom = sandbox_factory is not None or any(registry.get(ex.id) is not ex for ex in exercises)
     students = list_students(submissions)
     if sandbox_factory is None:

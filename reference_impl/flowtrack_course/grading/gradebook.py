@@ -29,7 +29,12 @@ __all__ = ["grade_cells", "notebook_name", "write_gradebook"]
 
 
 def notebook_name(exercise: Exercise) -> str:
-    """nbgrader's notebook name: the notebook's file name without ``.ipynb``."""
+    """nbgrader's notebook name: the notebook's file name without ``.ipynb``.
+
+    A language exercise (issue 19; ``cv_model.cpp`` and ``cv_model.m`` share a stem) uses its id.
+    """
+    if getattr(exercise, "language", ""):  # hook (issue 19)
+        return exercise.id
     return Path(exercise.notebook).stem
 
 

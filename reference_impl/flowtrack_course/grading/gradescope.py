@@ -47,6 +47,9 @@ set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq
 apt-get install -y -qq python3 python3-venv python3-pip bubblewrap
+# the toolchains of answers in C++, Octave and Java (Mathematica answers: mathics3, in the grader extra)
+apt-get install -y -qq g++ libeigen3-dev nlohmann-json3-dev octave openjdk-17-jdk-headless \
+    libgoogle-gson-java libejml-java
 python3 - <<'EOF'
 import sys
 if sys.version_info < (3, 11):
@@ -185,9 +188,14 @@ def _exercise_ids(exercises) -> list[str]:
         exercises = exercises.split(",")
     ids = [str(e).strip() for e in exercises if str(e).strip()]
     from .exercises import EXERCISES, get_exercise
+    from .languages import find_language_exercise
 
     out = []
     for i in ids:
+        lang = find_language_exercise(i)
+        if lang is not None:
+            out.append(lang.id)
+            continue
         try:
             out.append(get_exercise(i).id)
         except KeyError as exc:
@@ -264,7 +272,10 @@ def run_submission(
     results = Path(results)
     try:
         if exercises is None:
-            from .exercises import EXERCISES as exercises
+            from .exercises import EXERCISES
+            from .languages import answered_exercises  # answers in C++, Java, Octave, Mathematica
+
+            exercises = (*EXERCISES, *answered_exercises(submission))
         with tempfile.TemporaryDirectory(prefix="flowtrack-gs-") as tmp:
             summary = grade_student(student, submission, tuple(exercises), tmp, force=True, secret=secret)
             data = json.loads((Path(tmp) / student / "results.json").read_text(encoding="utf-8"))
@@ -294,8 +305,9 @@ def main(argv: list[str] | None = None) -> int:
         exercises = None
         if args.exercises:
             from .exercises import get_exercise
+            from .languages import find_language_exercise
 
-            exercises = [get_exercise(i) for i in _exercise_ids(args.exercises)]
+            exercises = [find_language_exercise(i) or get_exercise(i) for i in _exercise_ids(args.exercises)]
         secret = None
         if args.secret_file:
             from .spec import read_secret

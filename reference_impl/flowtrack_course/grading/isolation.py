@@ -65,6 +65,11 @@ def drop_to(uid: int | None) -> None:
     os.setresuid(uid, uid, uid)
 
 
+#: the JDK's configuration (java.security, jvm.cfg: Debian links them from /usr/lib/jvm into /etc),
+#: read-only, so that Java answers (issue 19) can be compiled and run in the sandbox
+JVM_CONFIG = ("/etc/java-17-openjdk", "/etc/java-21-openjdk")
+
+
 def bwrap_base(bwrap: str) -> list[str]:
     args = [bwrap, "--unshare-all", "--unshare-user", "--die-with-parent", "--new-session",
             "--uid", "65534", "--gid", "65534", "--ro-bind", "/usr", "/usr"]
@@ -74,7 +79,7 @@ def bwrap_base(bwrap: str) -> list[str]:
         elif os.path.isdir(top):
             args += ["--ro-bind", top, top]
     for f in ("/etc/ld.so.cache", "/etc/ld.so.conf", "/etc/ld.so.conf.d", "/etc/alternatives",
-              "/etc/localtime"):
+              "/etc/localtime", *JVM_CONFIG):
         args += ["--ro-bind-try", f, f]
     args += ["--proc", "/proc", "--dev", "/dev"]
     return args

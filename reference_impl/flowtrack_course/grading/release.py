@@ -205,7 +205,8 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
     """Write the student bundle to ``out`` (see the module docstring).
 
     ``out`` must be missing, empty or an earlier bundle (it is then replaced); ``force`` replaces any
-    folder. Returns ``{"lessons": [...], "exercises": [...], "out": Path}``.
+    folder. Returns ``{"lessons": [...], "exercises": [...], "languages": [...], "out": Path}``
+    (``languages``: the C++/Java/Octave/Mathematica stubs written, relative to ``exercises/``).
 
     Raises
     ------
@@ -255,6 +256,9 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
             dest.parent.mkdir(parents=True, exist_ok=True)
             nbformat.write(nb, dest)
             exercises.append(rel.as_posix())
+        from .languages import release_languages  # hook (issue 19): C++ / Octave stubs, same paths
+
+        languages = release_languages(root / "exercises", tmp / "exercises")
         problems = scan_bundle(tmp) + scan_worked_answers(tmp)
         if problems:
             raise RuntimeError("release: the bundle would leak: " + "; ".join(problems[:10]))
@@ -264,7 +268,7 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return {"lessons": lessons, "exercises": exercises, "out": out}
+    return {"lessons": lessons, "exercises": exercises, "languages": languages, "out": out}
 
 
 # --------------------------------------------------------------------------------------------------

@@ -1,0 +1,324 @@
+"""Issue 19: students answer in C++ (Eigen) and Octave, graded by the same grader.
+
+Oracles: the problems' expected values (the Python reference) are checked against independent
+formulas (finite differences, explicit inverses, the textbook matrices); the grader's scoring of
+wrong answers is checked on outputs of the catalogued mistaken formulas; the instructor solutions
+must earn full marks in the sandbox, their stubs 0, a wrong variant partial credit with its mistake
+named, and a compile error becomes feedback with the compiler's message.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flowtrack_course.grading.grade import grade_class, run_exercise
+from flowtrack_course.grading.languages import (
+    LANGUAGE_EXERCISES,
+    PROBLEMS,
+    TOOLCHAINS,
+    find_language_exercise,
+    materialise,
+    release_languages,
+    strip_solutions,
+)
+from flowtrack_course.grading.languages.exercises import _score_cases
+from flowtrack_course.grading.sandbox import bwrap_status
+from flowtrack_course.grading.spec import Outcome
+
+pytestmark = pytest.mark.xdist_group("sandbox")
+
+REPO = Path(__file__).resolve().parents[1]
+SOURCES = REPO / "exercises"
+
+
+def _ex(language: str, problem: str):
+    ex = find_language_exercise(f"{language}_{problem}")
+    assert ex is not None
+    return ex
+
+
+@pytest.fixture
+def toolchain(request, monkeypatch):
+    ok, why = bwrap_status()
+    assert ok, f"bubblewrap must work for the language tests (make test installs it): {why}"
+    monkeypatch.setenv("FLOWTRACK_SANDBOX", "bwrap")
+    TOOLCHAINS[request.param].check()  # a missing toolchain fails, it is never skipped silently
+    return request.param
+
+
+# -- the problems' expected values against independent oracles ------------------------------------
+def test_cv_model_reference_is_the_textbook_matrix():
+    for inp in [*PROBLEMS["cv_model"].public(), *PROBLEMS["cv_model"].hidden(np.random.default_rng(1))]:
+        dt, q = inp["dt"], inp["q"]
+        out = PROBLEMS["cv_model"].reference(inp)
+        F = np.array([[1, 0, dt, 0], [0, 1, 0, dt], [0, 0, 1, 0], [0, 0, 0, 1]])
+        Q = q * np.array(
+            [
+                [dt**4 / 4, 0, dt**3 / 2, 0],
+                [0, dt**4 / 4, 0, dt**3 / 2],
+                [dt**3 / 2, 0, dt**2, 0],
+                [0, dt**3 / 2, 0, dt**2],
+            ]
+        )
+        np.testing.assert_allclose(out["F"], F, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(out["Q"], Q, rtol=1e-12, atol=1e-15)
+
+
+def test_kalman_step_reference_matches_the_explicit_inverse_form():
+    p = PROBLEMS["kalman_step"]
+    for inp in [*p.public(), *p.hidden(np.random.default_rng(2))]:
+        x, P, F, Q, H, R, z = (np.asarray(inp[k], float) for k in "x P F Q H R z".split())
+        xp, Pp = F @ x, F @ P @ F.T + Q
+        K = Pp @ H.T @ np.linalg.inv(H @ Pp @ H.T + R)
+        out = p.reference(inp)
+        np.testing.assert_allclose(out["x"], xp + K @ (z - H @ xp), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(out["P"], (np.eye(len(x)) - K @ H) @ Pp, rtol=1e-7, atol=1e-10)
+
+
+def test_projection_jacobian_reference_matches_finite_differences():
+    p = PROBLEMS["projection_jacobian"]
+    for inp in [*p.public(), *p.hidden(np.random.default_rng(3))]:
+        X = np.asarray(inp["X"], float)
+
+        def proj(Y, inp=inp):
+            return np.array([inp["fx"] * Y[0] / Y[2] + inp["cx"], inp["fy"] * Y[1] / Y[2] + inp["cy"]])
+
+        h = 1e-6
+        J = np.stack([(proj(X + h * e) - proj(X - h * e)) / (2 * h) for e in np.eye(3)], axis=1)
+        np.testing.assert_allclose(p.reference(inp)["J"], J, rtol=1e-6, atol=1e-6)
+
+
+def test_mahalanobis_reference_matches_solve_and_the_gate():
+    p = PROBLEMS["mahalanobis_gating"]
+    for inp in [*p.public(), *p.hidden(np.random.default_rng(4))]:
+        zp, S, Z = (np.asarray(inp[k], float) for k in ("z_pred", "S", "Z"))
+        d2 = np.array([r @ np.linalg.solve(S, r) for r in Z - zp])
+        out = p.reference(inp)
+        np.testing.assert_allclose(out["d2"], d2, rtol=1e-10)
+        np.testing.assert_array_equal(out["inside"], (d2 <= inp["gate"]).astype(float))
+        assert 0.0 < out["inside"].mean() < 1.0  # a never- or always-gating answer cannot score
+    assert p.reference(p.public()[0])["inside"].tolist() == [1.0, 1.0, 0.0]  # 1, 4, 9.25 vs 9.21
+
+
+# -- scoring: partial credit and the mistake catalogue, without a sandbox ---------------------------
+def _outcome(cases, outputs):
+    return Outcome(
+        True,
+        {
+            c["id"]: {"ok": True, "value": {k: np.asarray(v).tolist() for k, v in o.items()}}
+            for c, o in zip(cases, outputs)
+        },
+    )
+
+
+@pytest.mark.parametrize("problem", sorted(PROBLEMS))
+def test_each_catalogued_mistake_gets_partial_credit_and_is_named(problem):
+    p = PROBLEMS[problem]
+    cases = [{"id": f"c{i}", "input": inp} for i, inp in enumerate(p.hidden(np.random.default_rng(5)))]
+    expected = [{k: np.asarray(v, float) for k, v in p.reference(c["input"]).items()} for c in cases]
+    score, msg = _score_cases(p, cases, expected, _outcome(cases, expected), show=True)
+    assert score == 1.0 and "mistake" not in msg
+    assert p.mistakes
+    for mid, _text, wrong in p.mistakes:
+        outputs = [{**exp, **wrong(c["input"])} for c, exp in zip(cases, expected)]
+        score, msg = _score_cases(p, cases, expected, _outcome(cases, outputs), show=True)
+        assert 0.0 <= score < 1.0, (mid, score)
+        if len(p.outputs) > 1 and set(wrong(cases[0]["input"])) != set(p.outputs):
+            assert score > 0.0, mid  # the other outputs still count
+        assert f"mistake {mid}:" in msg, msg
+
+
+def test_generic_mistakes_and_failures_are_reported():
+    p = PROBLEMS["projection_jacobian"]
+    cases = [{"id": "a", "input": p.public()[1]}]
+    exp = [{"J": np.asarray(p.reference(cases[0]["input"])["J"])}]
+    score, msg = _score_cases(p, cases, exp, _outcome(cases, [{"J": -exp[0]["J"]}]), show=True)
+    assert score == 0.0 and "mistake generic-sign:" in msg
+    score, msg = _score_cases(p, cases, exp, _outcome(cases, [{"J": 2.5 * exp[0]["J"]}]), show=True)
+    assert "mistake generic-scale:" in msg
+    score, msg = _score_cases(p, cases, exp, _outcome(cases, [{"J": [[1.0, 2.0]]}]), show=True)
+    assert score == 0.0 and "shape (1, 2)" in msg
+    score, msg = _score_cases(p, cases, exp, Outcome(False, None, "build failed: error: x"), show=True)
+    assert score == 0.0 and "build failed" in msg
+    hidden_msg = _score_cases(p, cases, exp, _outcome(cases, [{"J": -exp[0]["J"]}]), show=False)[1]
+    assert "case a" not in hidden_msg  # hidden tests: no per-case details
+
+
+# -- stubs and the bundle ----------------------------------------------------------------------------
+def test_strip_solutions_and_unbalanced_markers():
+    text = "int f() {\n    // BEGIN SOLUTION\n    return 1;\n    // END SOLUTION\n}\n"
+    assert strip_solutions(text, "cpp") == "int f() {\n    // YOUR CODE HERE\n}\n"
+    with pytest.raises(ValueError, match="unbalanced"):
+        strip_solutions("// BEGIN SOLUTION\nx\n", "cpp")
+
+
+def test_every_language_exercise_has_an_instructor_source_with_markers():
+    assert {ex.language for ex in LANGUAGE_EXERCISES} == {"cpp", "java", "mathics", "octave"}
+    assert len(LANGUAGE_EXERCISES) == 16
+    for ex in LANGUAGE_EXERCISES:
+        text = (SOURCES / ex.notebook).read_text()
+        assert "BEGIN SOLUTION" in text and "END SOLUTION" in text, ex.notebook
+        assert (SOURCES / ex.language / "README.md").is_file()
+
+
+def test_release_writes_stubs_tests_and_readmes_at_the_same_paths(tmp_path):
+    written = release_languages(SOURCES, tmp_path)
+    assert sorted(written) == sorted(ex.notebook for ex in LANGUAGE_EXERCISES)
+    for ex in LANGUAGE_EXERCISES:
+        folder = tmp_path / ex.language / ex.problem
+        stub = (tmp_path / ex.notebook).read_text()
+        assert "SOLUTION" not in stub and "YOUR CODE HERE" in stub
+        doc = json.loads((folder / "public.json").read_text())
+        assert doc["problem"] == ex.problem and len(doc["cases"]) == len(PROBLEMS[ex.problem].public())
+        for case in doc["cases"]:  # the public expected values are the reference's
+            ref = PROBLEMS[ex.problem].reference(case["input"])
+            for k, v in case["expected"].items():
+                np.testing.assert_allclose(v, ref[k], rtol=0, atol=0)
+        assert (tmp_path / ex.language / "README.md").is_file()
+    assert (tmp_path / "cpp" / "kalman_step" / "CMakeLists.txt").read_text().count("kalman_step") >= 1
+
+
+# -- the sandbox: solutions, stubs, wrong variants, compile errors ---------------------------------
+def _write(tmp_path: Path, ex, text: str) -> Path:
+    p = tmp_path / "exercises" / ex.notebook
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("toolchain", ["cpp", "java", "mathics", "octave"], indirect=True)
+def test_solutions_get_full_marks(toolchain):
+    slow = {"cpp": ["kalman_step", "mahalanobis_gating"], "mathics": ["kalman_step", "projection_jacobian"]}
+    problems = slow.get(toolchain, sorted(PROBLEMS))
+    for problem in problems:
+        ex = _ex(toolchain, problem)
+        r = run_exercise(ex, SOURCES / ex.notebook, "ana")
+        assert r.isolation == "bwrap"
+        assert r.score == r.max_score == 3.0, (ex.id, [t.message for t in r.tests], r.problems)
+
+
+@pytest.mark.parametrize("toolchain", ["cpp", "java", "mathics", "octave"], indirect=True)
+def test_stub_scores_zero_and_wrong_variant_gets_partial_credit_named(toolchain, tmp_path):
+    ex = _ex(toolchain, "cv_model")
+    source = (SOURCES / ex.notebook).read_text()
+    stub = _write(tmp_path / "stub", ex, strip_solutions(source, toolchain))
+    r = run_exercise(ex, stub, "ana")
+    assert r.score == 0.0, [t.message for t in r.tests]
+    if toolchain == "cpp":  # the syllabus' blkdiag(Q1d, Q1d)
+        wrong = source.replace(
+            "Q.block<2, 2>(2 * i, 2 * k) = q * q1(i, k) * Eigen::Matrix2d::Identity();",
+            "Q(2 * i + 0, 0) = 0.0; Q.setZero(); Q.block<2, 2>(0, 0) = q * q1; Q.block<2, 2>(2, 2) = q * q1;",
+        )
+    elif toolchain == "java":  # the continuous-time powers
+        wrong = source.replace(
+            "{{Math.pow(dt, 4) / 4, Math.pow(dt, 3) / 2}, {Math.pow(dt, 3) / 2, dt * dt}}",
+            "{{Math.pow(dt, 3) / 3, dt * dt / 2}, {dt * dt / 2, dt}}",
+        )
+    elif toolchain == "mathics":  # transposed F
+        wrong = source.replace(
+            "F = {{1, 0, dt, 0}, {0, 1, 0, dt}, {0, 0, 1, 0}, {0, 0, 0, 1}};",
+            "F = Transpose[{{1, 0, dt, 0}, {0, 1, 0, dt}, {0, 0, 1, 0}, {0, 0, 0, 1}}];",
+        )
+    else:
+        wrong = source.replace(
+            "Q = q * kron([dt^4 / 4, dt^3 / 2; dt^3 / 2, dt^2], eye(2));",
+            "Q = q * kron([dt^3 / 3, dt^2 / 2; dt^2 / 2, dt], eye(2));",
+        )
+    assert wrong != source
+    r = run_exercise(ex, _write(tmp_path / "wrong", ex, wrong), "ana")
+    assert r.score == pytest.approx(1.5), [t.message for t in r.tests]  # one of F, Q right
+    mistake = {"cpp": "cv-q-blockdiag", "mathics": "generic-transpose"}.get(toolchain, "cv-q-continuous")
+    assert all(f"mistake {mistake}:" in t.message for t in r.tests), [t.message for t in r.tests]
+
+
+@pytest.mark.parametrize("toolchain", ["cpp", "java"], indirect=True)
+def test_compile_error_is_feedback_with_the_compilers_message(toolchain, tmp_path):
+    ex = _ex(toolchain, "projection_jacobian")
+    old = "J(0, 0) = fx * iz;" if toolchain == "cpp" else "J[0][0] = fx * iz;"
+    bad = (SOURCES / ex.notebook).read_text().replace(old, old.replace("iz", "undeclared_thing"))
+    assert "undeclared_thing" in bad
+    r = run_exercise(ex, _write(tmp_path, ex, bad), "ana")
+    assert r.score == 0.0
+    public = next(t for t in r.tests if not t.hidden)
+    assert "build failed" in public.message and "undeclared_thing" in public.message, public.message
+
+
+@pytest.mark.parametrize("toolchain", ["octave"], indirect=True)
+def test_check_and_grade_commands_cover_the_languages(toolchain, tmp_path, capsys):
+    from flowtrack_course.grading.check import check_notebook
+
+    ex = _ex("octave", "projection_jacobian")
+    assert check_notebook(SOURCES / ex.notebook) == 0
+    assert "public score: 1 / 1" in capsys.readouterr().out
+    subs = tmp_path / "subs"
+    _write(subs / "ana", ex, (SOURCES / ex.notebook).read_text())
+    _write(subs / "ben", ex, strip_solutions((SOURCES / ex.notebook).read_text(), "octave"))
+    rows = {r["student"]: r for r in grade_class(subs, tmp_path / "out", progress=False)}
+    assert rows["ana"]["exercises"][ex.id] == 3.0 and rows["ben"]["exercises"][ex.id] == 0.0
+    header = (tmp_path / "out" / "grades.csv").read_text().splitlines()[0].split(",")
+    assert ex.id in header and "total" in header
+    assert "cpp_cv_model" not in header  # only the languages someone answered get columns
+    results = json.loads((tmp_path / "out" / "ana" / "results.json").read_text())
+    assert any(t["name"].startswith(ex.id) for t in results["tests"])
+    assert (tmp_path / "out" / "ben" / "feedback" / f"{ex.id}.md").is_file()
+
+
+def test_materialise_solution_runs_the_octave_public_tests_locally(tmp_path):
+    import shutil
+    import subprocess
+
+    octave = shutil.which("octave-cli")
+    assert octave, "octave must be installed (make test installs it)"
+    ex = _ex("octave", "mahalanobis_gating")
+    materialise(ex, SOURCES / "octave" / ex.problem, tmp_path, stub=False)
+    proc = subprocess.run(
+        [octave, "--norc", "run_public_tests.m"], cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.count(" PASS ") == 2
+
+
+def test_materialise_solution_runs_the_java_public_tests_locally(tmp_path):
+    import shutil
+    import subprocess
+
+    assert shutil.which("javac"), "a JDK must be installed (make test installs it)"
+    ex = _ex("java", "projection_jacobian")
+    materialise(ex, SOURCES / "java" / ex.problem, tmp_path, stub=False)
+    proc = subprocess.run(
+        ["sh", "run_public_tests.sh"], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.count(" PASS ") == 2
+
+
+def test_mathics_harness_runs_the_public_tests_locally(tmp_path):
+    import subprocess
+    import sys
+
+    ex = _ex("mathics", "projection_jacobian")
+    materialise(ex, SOURCES / "mathics" / ex.problem, tmp_path, stub=False)
+    cmd = [sys.executable, "ft_mathics.py", "--check", ex.problem, "public.json", "projection_jacobian.wl"]
+    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.count(" PASS ") == 2
+
+
+@pytest.mark.parametrize("toolchain", ["octave"], indirect=True)
+def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
+    from flowtrack_course.grading.gradescope import SETUP_SH, run_submission
+
+    for pkg in ("g++", "libeigen3-dev", "octave", "openjdk-17-jdk-headless", "libgoogle-gson-java"):
+        assert pkg in SETUP_SH  # the bundle's image gets the toolchains from Debian
+    assert "[grading,ports]" in SETUP_SH  # and Mathics3
+    ex = _ex("octave", "cv_model")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "cv_model.m").write_text((SOURCES / ex.notebook).read_text())  # a flat upload
+    data = run_submission(tmp_path / "sub", tmp_path / "results.json", student="ana")
+    mine = [t for t in data["tests"] if t["name"].startswith(ex.id)]
+    assert len(mine) == 2 and all(t["status"] == "passed" for t in mine), mine
+    assert not any(t["name"].startswith("cpp_") for t in data["tests"])
