@@ -501,7 +501,12 @@ def test_mistakes_from_results_json_reach_the_csv_and_the_report(tmp_path):
     results("ann", [("exa", "expected 1\nmistake generic-sign: the sign is flipped"), ("exb", "ok")])
     results("ben", [("exa", "mistake generic-sign: flipped\nmistake generic-scale: x2")])
     results("cid", [("exb", "all good")], extra=[("exb", "cv-dt-squared")])
-    found = classreport.collect_mistakes(out, ["ann", "ben", "cid", "nobody"])
+    results("dan", [("exb", "all good")])  # the grader's own record format (grade.py, mistake_records)
+    data = json.loads((out / "dan" / "results.json").read_text())
+    data["extra_data"]["flowtrack"]["mistakes"] = [{"exercise": "exb", "id": "cv-dt-squared", "tests": ["t"]}]
+    (out / "dan" / "results.json").write_text(json.dumps(data))
+    found = classreport.collect_mistakes(out, ["ann", "ben", "cid", "dan", "nobody"])
+    assert found.pop("dan") == [("exb", "cv-dt-squared")]
     assert found == {
         "ann": [("exa", "generic-sign")],
         "ben": [("exa", "generic-scale"), ("exa", "generic-sign")],

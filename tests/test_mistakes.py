@@ -791,6 +791,29 @@ def test_results_json_and_feedback_carry_the_mistake_lines():
     assert results_json("s", [right])["extra_data"]["flowtrack"]["mistakes"] == []
 
 
+def test_a_recognised_mistake_reaches_misconceptions_csv(tmp_path):
+    """The grader's results.json (mistake lines and records) -> the class's misconceptions.csv."""
+    import csv
+    import json
+
+    from flowtrack_course.grading import classreport
+    from flowtrack_course.grading.grade import results_json, run_exercise
+
+    ex = get_exercise("ex05_cv_model")
+    wrong = CASES[[m for m, *_ in CASES].index("q-block-diagonal")][2]
+    for student, sources in (("ann", wrong), ("bob", wrong), ("cy", _solution(ex.id))):
+        result = run_exercise(ex, _write_notebook(ex, sources), student, sandbox_factory=InProcessSandbox)
+        (tmp_path / student).mkdir()
+        (tmp_path / student / "results.json").write_text(json.dumps(results_json(student, [result])))
+    found = classreport.collect_mistakes(tmp_path, ["ann", "bob", "cy"])
+    assert found["cy"] == [] and ("ex05_cv_model", "q-block-diagonal") in found["ann"]
+    classreport.write_misconceptions_csv(tmp_path / "m.csv", found)
+    rows = list(csv.DictReader((tmp_path / "m.csv").open()))
+    row = next(r for r in rows if r["mistake_id"] == "q-block-diagonal")
+    assert row == {"exercise": "ex05_cv_model", "mistake_id": "q-block-diagonal", "count": "2",
+                   "students": "ann;bob"}
+
+
 # --------------------------------------------------------------------------------------------------
 # fair partial credit: the same code scores the same for every student
 # --------------------------------------------------------------------------------------------------

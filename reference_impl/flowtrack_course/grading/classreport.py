@@ -64,7 +64,9 @@ def collect_mistakes(out: str | os.PathLike, students: Sequence[str]) -> dict[st
                 pairs.add((str(ex), mid))
         info = (data.get("extra_data") or {}).get("flowtrack", {}) if isinstance(data, dict) else {}
         for item in info.get("mistakes", []) if isinstance(info, dict) else []:
-            if isinstance(item, (list, tuple)) and len(item) == 2:
+            if isinstance(item, dict) and "exercise" in item and "id" in item:  # the grader's records
+                pairs.add((str(item["exercise"]), str(item["id"])))
+            elif isinstance(item, (list, tuple)) and len(item) == 2:
                 pairs.add((str(item[0]), str(item[1])))
         found[s] = sorted(pairs)
     return found
