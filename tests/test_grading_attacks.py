@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 
 from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
+from grading_helpers import SANDBOX_MODES, use_sandbox_mode
+
 from flowtrack.grading.spec import Call, Outcome, compare_arrays
 
 pytestmark = pytest.mark.xdist_group("sandbox")
@@ -31,19 +33,21 @@ def _bwrap(monkeypatch):
     monkeypatch.setenv("FLOWTRACK_SANDBOX", "bwrap")
 
 
-@pytest.fixture(params=["bwrap", "fallback"])
-def mode(request, monkeypatch):
-    if request.param == "bwrap":
-        _bwrap(monkeypatch)
-    else:
-        monkeypatch.setenv("FLOWTRACK_SANDBOX", "fallback")
-    return request.param
+@pytest.fixture(params=SANDBOX_MODES)
+def mode(request, monkeypatch, tmp_path_factory):
+    return use_sandbox_mode(request.param, monkeypatch, tmp_path_factory)
 
 
 @pytest.fixture
 def bwrap_only(monkeypatch):
     _bwrap(monkeypatch)
     return "bwrap"
+
+
+@pytest.fixture(params=["bwrap", "setpriv"])
+def strong(request, monkeypatch, tmp_path_factory):
+    """The modes that hold against code going around the in-process hook (namespaces, a uid)."""
+    return use_sandbox_mode(request.param, monkeypatch, tmp_path_factory)
 
 
 def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=()) -> tuple[float, list]:
@@ -227,7 +231,7 @@ def test_memory_bomb(mode):
     assert score == 0.0 and "memory" in outcomes[0].error
 
 
-def test_fork_bomb(bwrap_only):
+def test_fork_bomb(strong):
     cell = """
 import os
 def add(a, b):
@@ -391,7 +395,7 @@ def test_forged_replies_on_the_reply_channel(mode):
         assert ("timed out" if name == "drip" else "not valid data") in outcomes[0].error, outcomes[0]
 
 
-def test_a_grandchild_holding_the_reply_pipe_dies_with_the_sandbox(bwrap_only):
+def test_a_grandchild_holding_the_reply_pipe_dies_with_the_sandbox(strong):
     cell = """
 import os, time
 def add(a, b):
@@ -423,7 +427,7 @@ def add(a, b):
             os.kill(target, signal.SIGKILL)
         except (OSError, PermissionError):
             pass
-    if MODE == "bwrap":  # ctypes goes around any in-process hook; only the namespaces stop it
+    if MODE in ("bwrap", "setpriv"):  # ctypes goes around any in-process hook: namespaces or the uid stop it
         libc = ctypes.CDLL(None)
         libc.kill(os.getppid(), 9)
         libc.kill(-1, 9)

@@ -18,6 +18,8 @@ import pytest
 from flowtrack.grading.cgroups import cgroup_status
 from flowtrack.grading.isolation import remove_tree, tree_usage
 from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
+from grading_helpers import SANDBOX_MODES, use_sandbox_mode
+
 from flowtrack.grading.spec import Call
 
 pytestmark = pytest.mark.xdist_group("sandbox")
@@ -27,13 +29,9 @@ HONEST = "import numpy as np\ndef mul(a, b):\n    return np.asarray(a) * b\n"
 needs_cgroup = pytest.mark.skipif(not cgroup_status()[0], reason=f"no cgroup: {cgroup_status()[1]}")
 
 
-@pytest.fixture(params=["bwrap", "fallback"])
-def mode(request, monkeypatch):
-    if request.param == "bwrap":
-        ok, why = bwrap_status()
-        assert ok, f"bubblewrap must work for the attack tests (make test installs it): {why}"
-    monkeypatch.setenv("FLOWTRACK_SANDBOX", request.param)
-    return request.param
+@pytest.fixture(params=SANDBOX_MODES)
+def mode(request, monkeypatch, tmp_path_factory):
+    return use_sandbox_mode(request.param, monkeypatch, tmp_path_factory)
 
 
 def _chain(root: Path, depth: int, name: str = "d") -> None:
@@ -123,7 +121,7 @@ def attack():
 """
     limits = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16)
     out = _run_attack(mode, cell, Call("attack"), limits)
-    if mode == "fallback":  # deeper than the meter's limit: stopped as a violation of the disk limit
+    if mode in ("fallback", "setpriv"):  # deeper than the meter's limit: stopped as a violation of the disk limit
         assert not out.ok and "disk limit" in out.error, out
 
 

@@ -80,21 +80,137 @@ class _Capped:
         return text[:_MAX_TEXT]
 
 
+_CLEAN_EXIT = 165  # an exercise's child that received "end" (the zygote then cleans and goes on)
+
+
+def _setup(msg):
+    for p in msg["paths"]:
+        if p not in sys.path:
+            sys.path.append(p)
+    nproc = msg.get("nproc")
+    if nproc is not None:
+        try:
+            resource.setrlimit(resource.RLIMIT_NPROC, (nproc, nproc))
+        except (ValueError, OSError):
+            pass
+
+
+def _wipe(roots, litter_roots):
+    """Empty the writable folders between two exercises of one student (the zygote's own uid owns
+    everything in them); also what this uid left in the machine's world-writable folders."""
+    import shutil
+
+    def fix(func, path, exc):
+        parent = os.path.dirname(path)
+        os.chmod(parent, 0o700)
+        if os.path.isdir(path) and not os.path.islink(path):
+            os.chmod(path, 0o700)
+            shutil.rmtree(path, onerror=fix)
+        else:
+            func(path)
+
+    uid = os.getuid()
+    for root in roots:
+        for name in os.listdir(root):
+            path = os.path.join(root, name)
+            if os.path.isdir(path) and not os.path.islink(path):
+                os.chmod(path, 0o700)
+                shutil.rmtree(path, onerror=fix)
+            else:
+                os.unlink(path)
+    for root in litter_roots:
+        try:
+            names = os.listdir(root)
+        except OSError:
+            continue
+        for name in names:
+            path = os.path.join(root, name)
+            try:
+                if os.lstat(path).st_uid != uid:
+                    continue
+            except OSError:
+                continue
+            if os.path.isdir(path) and not os.path.islink(path):
+                os.chmod(path, 0o700)
+                shutil.rmtree(path, onerror=fix)
+            else:
+                os.unlink(path)
+
+
+def _zygote(msg, reply_fd, stdlib_paths):
+    """Serve one student's exercises: numpy is imported once here, each exercise runs in a forked
+    child (its own import guard, audit hook, namespace and rusage), and between two children every
+    process the child left is killed and the writable folders are emptied; then ``{"op": "clean"}``.
+    A child that dies otherwise takes the zygote with it (same exit status), so the grader sees
+    the death exactly as without a zygote."""
+    import signal
+
+    _setup(msg)
+    import numpy  # noqa: F401  - the point: forked children start with it imported
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
+    os.close(devnull)
+    wipe_roots = list(msg.get("wipe", ()))
+    litter_roots = list(msg.get("litter", ()))
+    data = json.dumps({"op": "zygote-ready"}).encode()
+    os.write(reply_fd, struct.pack(">I", len(data)) + data)
+    while True:
+        try:
+            init = _read_msg()
+        except EOFError:
+            os._exit(0)
+        if init.get("op") != "init":
+            os._exit(0)
+        pid = os.fork()
+        if pid == 0:
+            try:
+                _serve(init, reply_fd, stdlib_paths)
+            finally:
+                os._exit(1)
+        _, status = os.waitpid(pid, 0)
+        if os.WIFSIGNALED(status):
+            sig = os.WTERMSIG(status)
+            signal.signal(sig, signal.SIG_DFL)
+            os.kill(os.getpid(), sig)
+            os._exit(128 + sig)
+        code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else 1
+        if code != _CLEAN_EXIT:
+            os._exit(code)
+        if msg.get("reap"):  # everything of this sandbox but the zygote (and bubblewrap's init)
+            for _ in range(3):
+                try:
+                    os.kill(-1, signal.SIGKILL)
+                except OSError:
+                    pass
+            try:
+                while os.waitpid(-1, os.WNOHANG)[0]:
+                    pass
+            except ChildProcessError:
+                pass
+        try:
+            _wipe(wipe_roots, litter_roots)
+        except Exception:
+            os._exit(3)  # the grader then discards this sandbox
+        data = json.dumps({"op": "clean"}).encode()
+        os.write(reply_fd, struct.pack(">I", len(data)) + data)
+
+
 def main():
     reply_fd = os.dup(int(sys.argv[1]))
     os.close(int(sys.argv[1]))
     os.set_inheritable(reply_fd, False)
     init = _read_msg()
     stdlib_paths = list(sys.path[1:])  # -I -S: the runner's folder, then only the standard library
-    for p in init["paths"]:
-        if p not in sys.path:
-            sys.path.append(p)
-    nproc = init.get("nproc")
-    if nproc is not None:
-        try:
-            resource.setrlimit(resource.RLIMIT_NPROC, (nproc, nproc))
-        except (ValueError, OSError):
-            pass
+    if init.get("op") == "zygote":
+        _zygote(init, reply_fd, stdlib_paths)
+    else:
+        _serve(init, reply_fd, stdlib_paths)
+
+
+def _serve(init, reply_fd, stdlib_paths):
+    _setup(init)
 
     import numpy as np
 
@@ -283,6 +399,8 @@ def main():
             msg = _read_msg()
         except EOFError:
             os._exit(0)
+        if msg.get("op") == "end":  # the next exercise (the zygote goes on)
+            os._exit(_CLEAN_EXIT)
         usage = resource.getrusage(resource.RUSAGE_SELF)
         used = usage.ru_utime + usage.ru_stime
         try:

@@ -488,6 +488,7 @@ def grade_student(
     secret: bytes | None = None,
     hidden_paths: Sequence[str | os.PathLike] = (),
     renamed: dict[str, str] | None = None,
+    reuse_sandboxes: bool = True,
 ) -> dict:
     """Grade one student's folder; write ``out/<student>/feedback/*`` then ``results.json``.
 
@@ -498,6 +499,10 @@ def grade_student(
     ``secret`` keys the hidden tests' seeds (see :func:`run_exercise`); results made with another
     key (or none) are not kept on a re-run. ``renamed`` (``{exercise id: path in the folder}``, from
     :mod:`.layout`, ``flowtrack grade --accept-renamed``) grades renamed copies of missing notebooks.
+    ``reuse_sandboxes`` (default, with the real sandbox): the student's exercises share sandboxes
+    (:class:`~flowtrack.grading.sandbox.SandboxPool`: one sandboxed process per kind of exercise that
+    forks a clean child per exercise), which scores the same as a fresh sandbox per exercise and
+    saves most of the start-up time; ``False`` starts a fresh sandbox per exercise.
     Returns ``{"student", "skipped", "score", "max_score", "exercises": {id: score}, "isolation"}``.
     """
     student_dir = Path(student_dir)
@@ -530,18 +535,27 @@ def grade_student(
                 }
     results_path.unlink(missing_ok=True)
     results = []
-    for ex in exercises:
-        try:
-            r = run_exercise(
-                ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory, secret=secret,
-                hidden_paths=hidden_paths,
-            )
-        except Exception as exc:  # one broken exercise must not lose the others
-            r = ExerciseResult(ex.id, ex.title, ex.notebook)
-            r.problems.append(f"internal grader error: {type(exc).__name__}: {exc}")
-            r.tests = [_zero(t, r.problems[0]) for t in ex.tests]
-        r.problems[:0] = notes.get(ex.id, [])  # issue 18 hook (--accept-renamed)
-        results.append(r)
+    pool = None
+    if sandbox_factory is None and reuse_sandboxes:
+        from .sandbox import SandboxPool
+
+        pool = sandbox_factory = SandboxPool()
+    try:
+        for ex in exercises:
+            try:
+                r = run_exercise(
+                    ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory, secret=secret,
+                    hidden_paths=hidden_paths,
+                )
+            except Exception as exc:  # one broken exercise must not lose the others
+                r = ExerciseResult(ex.id, ex.title, ex.notebook)
+                r.problems.append(f"internal grader error: {type(exc).__name__}: {exc}")
+                r.tests = [_zero(t, r.problems[0]) for t in ex.tests]
+            r.problems[:0] = notes.get(ex.id, [])  # issue 18 hook (--accept-renamed)
+            results.append(r)
+    finally:
+        if pool is not None:
+            pool.close()
     isolation = next((r.isolation for r in results if r.isolation.startswith("fallback")), "")
     isolation = isolation or next((r.isolation for r in results if r.isolation), "")
     data = results_json(
@@ -595,7 +609,7 @@ def list_students(submissions: str | os.PathLike) -> list[str]:
 def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_factory=None) -> dict:
     """Grade one task of :func:`grade_class`; ``exercises`` default to the registry's by id."""
     (student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids, secret, hidden,
-     renamed) = args
+     renamed, reuse) = args
     try:
         if exercises is None:
             from .exercises import get_exercise
@@ -604,7 +618,7 @@ def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_fa
         return grade_student(
             student, student_dir, exercises, out, force=force, hidden_visibility=hidden_visibility,
             ex_hash=ex_hash, sandbox_factory=sandbox_factory, secret=secret, hidden_paths=hidden,
-            renamed=renamed,
+            renamed=renamed, reuse_sandboxes=reuse,
         )
     except Exception as exc:  # reported in the summary, the class goes on
         try:  # no results.json of an earlier run may stand for this one
@@ -645,6 +659,7 @@ def grade_class(
     allow_unsafe_sandbox: bool = False,
     renamed: dict[str, dict[str, str]] | None = None,
     roster: dict | None = None,
+    reuse_sandboxes: bool = True,
 ) -> list[dict]:
     """Grade every student folder of ``submissions`` into ``out`` (see the module docstring).
 
@@ -662,7 +677,8 @@ def grade_class(
 
     ``jobs`` worker processes grade students in parallel (each runs its own sandboxes); ``jobs=1``
     grades in this process, as do exercises not in the registry and a given ``sandbox_factory``
-    (tests' fakes). Returns one summary dict per student (sorted by student).
+    (tests' fakes). ``reuse_sandboxes`` goes to :func:`grade_student`. Returns one summary dict per
+    student (sorted by student).
     """
     from tqdm.auto import tqdm
 
@@ -682,7 +698,19 @@ def grade_class(
         from .isolation import choose_mode
 
         mode, why = choose_mode()
-        if mode != "bwrap" and not allow_unsafe_sandbox:
+        if mode == "setpriv" and not allow_unsafe_sandbox:
+            # no namespaces: the student's uid sees what file permissions let any user see
+            from .isolation import readable_by_sandbox
+
+            Path(out).mkdir(mode=0o700, parents=True, exist_ok=True)  # a new one: private
+            exposed = readable_by_sandbox(hidden)
+            if exposed:
+                raise UnsafeSandbox(
+                    f"bubblewrap cannot isolate student code here ({why}); the setpriv sandbox runs it as an "
+                    "unprivileged uid, which can read " + ", ".join(exposed) + ". Make them private to "
+                    "the grader (chmod go-rwx " + " ".join(exposed) + "), or pass --allow-unsafe-sandbox."
+                )
+        elif mode != "bwrap" and not allow_unsafe_sandbox:
             raise UnsafeSandbox(
                 f"bubblewrap cannot isolate student code here ({why}). The fallback sandbox runs it as a "
                 "plain process behind an in-process audit hook that a determined student can get around "
@@ -697,7 +725,7 @@ def grade_class(
     reserved = [s for s in students if s.lower() in RESERVED_NAMES]
     tasks = [
         (s, str(Path(submissions) / s), str(out), force, hidden_visibility, ex_hash,
-         tuple(ex.id for ex in exercises), secret, hidden, (renamed or {}).get(s))
+         tuple(ex.id for ex in exercises), secret, hidden, (renamed or {}).get(s), reuse_sandboxes)
         for s in students if s not in reserved
     ]
     summaries: dict[str, dict] = {}

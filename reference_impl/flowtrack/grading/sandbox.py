@@ -84,8 +84,10 @@ from typing import Any
 from .cache import cache_root, live_copy, world_readable
 from .cgroups import SandboxCgroup
 from .isolation import (
+    WORLD_WRITABLE,
     SandboxUnavailable,
     bwrap_base,
+    bwrap_path,
     bwrap_status,
     choose_mode,
     descendants,
@@ -94,8 +96,10 @@ from .isolation import (
     mount_usage,
     remove_tree,
     sandbox_uid,
+    setpriv_command,
     signal_name,
     tree_usage,
+    uid_litter,
     unlinked_bytes,
     user_tasks,
 )
@@ -114,7 +118,7 @@ from .runtime import (
 from .spec import Call, Outcome
 from .wire import is_plain, to_wire
 
-__all__ = ["Limits", "Sandbox", "SandboxUnavailable", "bwrap_status"]
+__all__ = ["Limits", "Sandbox", "SandboxPool", "SandboxUnavailable", "bwrap_status"]
 
 GiB = 1 << 30
 MiB = 1 << 20
@@ -242,7 +246,26 @@ class Sandbox:
         workdir_parent: Path | None = None,
         hidden_paths: Sequence[str | Path] = (),
         allowed: Sequence[str] | None = None,
+        zygote: bool = False,
     ) -> None:
+        self._configure(cells, blocked, allowed)
+        if not isinstance(limits, Limits):
+            raise TypeError("limits must be a Limits")
+        self.limits = limits
+        self.hidden_paths = tuple(str(Path(p).resolve()) for p in hidden_paths)
+        self.cell_errors: dict[str, str] = {}
+        self.stdout = ""
+        self._mode, why = choose_mode()
+        self.isolation = self._mode if self._mode in ("bwrap", "setpriv") else f"fallback: {why}"
+        # a zygote needs a sandbox whose every process may be killed at once: bubblewrap's pid
+        # namespace, or a per-sandbox uid (root); never the grader's own uid
+        self._zygote = bool(zygote) and (self._mode == "bwrap" or os.geteuid() == 0)
+        self._child_live = False
+        self._nproc_child: int | None = None
+        self._init_common(workdir_parent)
+
+    def _configure(self, cells, blocked, allowed) -> None:
+        """Validate and set the cells, blocked modules and allowlist of the (next) exercise."""
         if isinstance(cells, str | bytes) or not all(
             isinstance(c, tuple | list) and len(c) == 2 and all(isinstance(s, str) for s in c) for c in cells
         ):
@@ -251,8 +274,6 @@ class Sandbox:
             isinstance(b, str) and b and all(p.isidentifier() for p in b.split(".")) for b in blocked
         ):
             raise TypeError("blocked must be a sequence of dotted module names such as 'scipy.optimize'")
-        if not isinstance(limits, Limits):
-            raise TypeError("limits must be a Limits")
         self.cells = [(str(g), str(s)) for g, s in cells]
         self.blocked = tuple(dict.fromkeys([*blocked, "flowtrack.grading"]))
         if allowed is not None and (isinstance(allowed, str) or not all(
@@ -261,12 +282,16 @@ class Sandbox:
             raise TypeError("allowed must be a sequence of dotted module names such as 'scipy.linalg'")
         self.allowed = None if allowed is None else tuple(dict.fromkeys(["numpy", *allowed]))
         self._packages = None if self.allowed is None else allowed_packages(self.allowed)
-        self.limits = limits
-        self.hidden_paths = tuple(str(Path(p).resolve()) for p in hidden_paths)
-        self.cell_errors: dict[str, str] = {}
-        self.stdout = ""
-        self._mode, why = choose_mode()
-        self.isolation = "bwrap" if self._mode == "bwrap" else f"fallback: {why}"
+
+    @property
+    def key(self) -> tuple:
+        """What the sandbox's process depends on (its file system view under bubblewrap, its limits):
+        exercises with equal keys can share one zygote (:class:`SandboxPool`)."""
+        pk = self._packages
+        view_blocked = tuple(sorted(b for b in self.blocked if pk is None or b.split(".")[0] in pk))
+        return (self._mode, pk, view_blocked, self.limits, self.hidden_paths, str(self._workdir_parent))
+
+    def _init_common(self, workdir_parent) -> None:
         self._cache = cache_root()
         self._workdir_parent = Path(workdir_parent) if workdir_parent is not None else self._cache / "work"
         if not self._workdir_parent.is_dir():
@@ -286,7 +311,7 @@ class Sandbox:
         self.cleanup_problems: list[str] = []
         self._next_disk_check = 0.0
         self._cpu_used = 0.0
-        self._cpu_ceiling = int(10 * limits.cpu_seconds + 60)
+        self._cpu_ceiling = int(10 * self.limits.cpu_seconds + 60)
 
     # -- context manager ---------------------------------------------------------------------------
     def __enter__(self) -> Sandbox:
@@ -316,8 +341,11 @@ class Sandbox:
                 out.append((b, loc))
         return out
 
-    def _command(self) -> tuple[list[str], dict[str, str], dict[str, Any], Path]:
-        self._uid = sandbox_uid()
+    def _command(self, launch: bool = True) -> tuple[list[str], dict[str, str], dict[str, Any], Path]:
+        """The command, environment, init message and folder of a new child (``launch``), or only the
+        init message of the next exercise in a running zygote (``launch=False``)."""
+        if launch:
+            self._uid = sandbox_uid()
         # the cached copies are marked as used at every start (see "Cache" in the module docstring)
         runtime = live_copy(python_runtime, self._uid is not None,
                         where=lambda r: Path(r.source) if r.lib_dir is not None else None)
@@ -335,16 +363,21 @@ class Sandbox:
         ft_root = live_copy(filtered_flowtrack, ft_blocked)
         with_flowtrack = self._packages is None or "flowtrack" in self._packages
         runner = live_copy(runner_dir)
-        workdir = Path(tempfile.mkdtemp(prefix="student-", dir=self._workdir_parent))
+        if not launch:
+            assert self._workdir is not None
+            workdir = self._workdir
+        else:
+            workdir = Path(tempfile.mkdtemp(prefix="student-", dir=self._workdir_parent))
         # The fallback's only writable places: workdir/home (HOME and cwd) and workdir/tmp (TMPDIR),
         # measured as one tree (see Limits.disk_bytes). Under bubblewrap they stay empty (the
         # student writes to a tmpfs inside the sandbox) and workdir/home is only bubblewrap's cwd.
         home, tmp = workdir / "home", workdir / "tmp"
-        for d in (home, tmp):
+        for d in (home, tmp) if launch else ():
             d.mkdir(mode=0o700)
             if self._uid is not None:
                 os.chown(d, self._uid, self._uid)
-        os.chmod(workdir, 0o711)
+        if launch:
+            os.chmod(workdir, 0o711)
         env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
                "MPLBACKEND": "Agg", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8",
                "PATH": "/usr/bin:/bin"}
@@ -353,7 +386,7 @@ class Sandbox:
         blocked_locs = self._blocked_locations(roots)
         if self._mode == "bwrap":
             inner_sites = [f"{_OPT}/site/{i}" for i in range(len(sites))]
-            cmd = bwrap_base(shutil.which("bwrap") or "bwrap")
+            cmd = bwrap_base(bwrap_path() or "bwrap")
             cmd += ["--ro-bind", runtime.source, runtime.prefix]
             for src, dst in zip(sites, inner_sites):
                 if self._packages is not None:  # only what the allowlist needs
@@ -405,6 +438,9 @@ class Sandbox:
             if not in_site and (repo / "pyproject.toml").exists():
                 deny.append(str(repo))
             cmd = [runtime.executable, "-I", "-S", "-B", str(runner / "_child.py")]
+            if self._mode == "setpriv":  # the uid switch, capabilities and no_new_privs: see setpriv_command
+                assert self._uid is not None
+                cmd = [*setpriv_command(self._uid), *cmd]
             init = {"paths": [str(ft_root)] * with_flowtrack + sites, "deny_paths": deny,
                     "strict_audit": True,
                     "write_root": str(workdir),
@@ -422,6 +458,7 @@ class Sandbox:
         lim = self.limits
         uid = self._uid
         cgroup = self._cgroup
+        via_setpriv = self._mode == "setpriv"
         cpu = math.ceil(lim.cpu_seconds) + 2  # + import of numpy and the cells
 
         def fn() -> None:
@@ -435,42 +472,26 @@ class Sandbox:
                 rl.setrlimit(rl.RLIMIT_NPROC, (nproc_outer, nproc_outer))
             if cgroup is not None:
                 cgroup.enter()
-            drop_to(uid)
+            if not via_setpriv:
+                drop_to(uid)
 
         return fn
 
     def start(self, timeout: float | None = None) -> None:
-        """Start the child and execute the cells (``run`` does this lazily); fills ``cell_errors``."""
-        if self._proc is not None:
+        """Start the child and execute the cells (``run`` does this lazily); fills ``cell_errors``.
+
+        With ``zygote=True`` the sandbox's process is started once (it imports numpy) and each
+        exercise (:meth:`prepare`, :meth:`finish`) runs in a child it forks.
+        """
+        if self._child_live:
             return
         timeout = self.limits.wall_seconds if timeout is None else float(timeout)
-        cmd, env, init, workdir = self._command()
-        self._workdir = workdir
-        r, w = os.pipe()
-        os.set_inheritable(w, True)
-        if self._uid is not None:
-            nproc_outer = self.limits.processes  # a fresh uid: the count is the sandbox's own
-            nproc_child = self.limits.processes
-        elif self._mode == "bwrap":
-            nproc_outer = None  # counted per user namespace once the child lowers it
-            nproc_child = self.limits.processes
+        if self._proc is None:
+            cmd, env, init, workdir = self._command()
+            self._launch(cmd, env, init, workdir, timeout)
         else:
-            nproc_outer = None
-            nproc_child = user_tasks() + self.limits.processes
-        init.update(op="init", nproc=nproc_child, blocked=list(self.blocked), cells=self.cells)
-        # bubblewrap's two processes come on top of the student's
-        self._cgroup = SandboxCgroup.create(self._cgroup_memory(), self.limits.processes + 4)
-        self.cgroup = self._cgroup.kind if self._cgroup is not None else ""
-        self._stderr = tempfile.TemporaryFile()
-        try:
-            self._proc = subprocess.Popen(
-                [*cmd, str(w)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._stderr,
-                pass_fds=(w,), env=env, cwd=str(workdir / "home"), start_new_session=True,
-                preexec_fn=self._preexec(nproc_outer),
-            )
-        finally:
-            os.close(w)
-        self._reply_fd = r
+            _, _, init, _ = self._command(launch=False)
+        init.update(op="init", nproc=self._nproc_child, blocked=list(self.blocked), cells=self.cells)
         self._cpu_used = 0.0
         deadline = time.monotonic() + timeout
         try:
@@ -484,6 +505,52 @@ class Sandbox:
             self._kill()
             raise _ChildGone("the sandbox sent an invalid start-up reply")
         self.cell_errors = {str(k): str(v)[:2000] for k, v in errors.items() if isinstance(k, str)}
+        self._child_live = True
+
+    def _launch(self, cmd: list[str], env: dict[str, str], init: dict, workdir: Path, timeout: float) -> None:
+        self._workdir = workdir
+        r, w = os.pipe()
+        os.set_inheritable(w, True)
+        if self._uid is not None:
+            nproc_outer = self.limits.processes  # a fresh uid: the count is the sandbox's own
+            nproc_child = self.limits.processes
+        elif self._mode == "bwrap":
+            nproc_outer = None  # counted per user namespace once the child lowers it
+            nproc_child = self.limits.processes
+        else:
+            nproc_outer = None
+            nproc_child = user_tasks() + self.limits.processes
+        self._nproc_child = nproc_child
+        # bubblewrap's two processes (and a zygote) come on top of the student's
+        self._cgroup = SandboxCgroup.create(self._cgroup_memory(), self.limits.processes + 5)
+        self.cgroup = self._cgroup.kind if self._cgroup is not None else ""
+        self._stderr = tempfile.TemporaryFile()
+        try:
+            self._proc = subprocess.Popen(
+                [*cmd, str(w)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._stderr,
+                pass_fds=(w,), env=env, cwd=str(workdir / "home"), start_new_session=True,
+                preexec_fn=self._preexec(nproc_outer),
+            )
+        finally:
+            os.close(w)
+        self._reply_fd = r
+        if not self._zygote:
+            return
+        if self._mode == "bwrap":
+            wipe, litter = [_SANDBOX_HOME, "/tmp"], []
+        else:
+            wipe, litter = [str(workdir / "home"), str(workdir / "tmp")], list(WORLD_WRITABLE)
+        deadline = time.monotonic() + timeout
+        try:
+            self._send({"op": "zygote", "paths": init["paths"], "nproc": nproc_child, "reap": True,
+                        "wipe": wipe, "litter": litter}, deadline)
+            reply = self._recv(deadline, 1024, timeout, starting=True)
+        except _ChildGone:
+            self._kill()
+            raise
+        if not (isinstance(reply, dict) and reply.get("op") == "zygote-ready"):
+            self._kill()
+            raise _ChildGone("the sandbox sent an invalid start-up reply")
 
     # -- I/O -----------------------------------------------------------------------------------------
     def _send(self, msg: dict, deadline: float) -> None:
@@ -570,6 +637,18 @@ class Sandbox:
             if problem:
                 raise _ChildGone(f"{problem}: the disk limit cannot be checked")
             size += unlinked_bytes(descendants(self._proc.pid))
+            if self._uid is not None:  # what its uid keeps in the machine's world-writable folders
+                for entry in uid_litter(self._uid):
+                    if entry.is_dir() and not entry.is_symlink():
+                        u = tree_usage(entry, lim.disk_files)
+                        if u.problem:
+                            raise _ChildGone(f"{u.problem}: the disk limit cannot be checked")
+                        size, files = size + u.size, files + u.entries + 1
+                    else:
+                        try:
+                            size, files = size + entry.lstat().st_blocks * 512, files + 1
+                        except OSError:
+                            pass
         if files > lim.disk_files:
             raise _ChildGone(f"created more than {lim.disk_files} files (the disk limit)")
         if size > lim.disk_bytes:
@@ -640,10 +719,10 @@ class Sandbox:
         outcomes: list[Outcome] = []
         if not calls:
             return outcomes
-        if self._proc is not None and self._cpu_used > self._cpu_ceiling - self.limits.cpu_seconds - 5:
+        if self._child_live and self._cpu_used > self._cpu_ceiling - self.limits.cpu_seconds - 5:
             self._kill()  # its lifetime CPU budget is nearly spent: start afresh
         try:
-            if self._proc is None:
+            if not self._child_live:
                 self.start(timeout)
             deadline = time.monotonic() + timeout
             self._send({"op": "calls", "calls": wire, "cpu": self.limits.cpu_seconds}, deadline)
@@ -652,6 +731,8 @@ class Sandbox:
             for _ in calls:
                 reply = self._recv(deadline, budget, timeout)
                 budget -= self._budget_used
+                if isinstance(reply, dict) and reply.get("op") == "clean":  # the zygote: its child is gone
+                    raise _ChildGone("the process exited (sys.exit / os._exit)")
                 if not isinstance(reply, dict) or type(reply.get("ok")) is not bool:
                     raise _ChildGone("the sandbox sent a reply that is not plain data")
                 if isinstance(reply.get("printed"), str):
@@ -677,7 +758,38 @@ class Sandbox:
         return outcomes
 
     # -- teardown ------------------------------------------------------------------------------------
+    def finish(self) -> None:
+        """End the current exercise's child; a zygote then cleans up and waits for the next
+        (:meth:`prepare`). Without a zygote (or when anything goes wrong) the sandbox is killed."""
+        if not self._zygote or not self._child_live or self._proc is None:
+            self._kill()
+            return
+        self._child_live = False
+        try:
+            deadline = time.monotonic() + max(10.0, self.limits.wall_seconds)
+            self._send({"op": "end"}, deadline)
+            reply = self._recv(deadline, 1024, max(10.0, self.limits.wall_seconds))
+            if not (isinstance(reply, dict) and reply.get("op") == "clean"):
+                raise _ChildGone("the zygote did not clean up")
+            self._next_disk_check = 0.0
+            self._check_disk()
+        except _ChildGone:
+            self._kill()
+
+    def prepare(self, cells: Sequence[tuple[str, str]], *, blocked: Sequence[str] = (),
+                allowed: Sequence[str] | None = None) -> None:
+        """Set the next exercise of a zygote sandbox (its :attr:`key` must stay the same)."""
+        key = self.key
+        self._configure(cells, blocked, allowed)
+        if self.key != key:
+            raise ValueError("prepare: the exercise needs another sandbox (a different key)")
+        if self._child_live:
+            self.finish()
+        self.cell_errors = {}
+        self.stdout = ""
+
     def _kill(self) -> None:
+        self._child_live = False
         p, self._proc = self._proc, None
         if p is not None:
             # Kill bubblewrap's children first (the pid namespace's init: its death kills the whole
@@ -720,6 +832,15 @@ class Sandbox:
             self._cgroup = None
         if self._uid is not None and p is not None:
             kill_uid(self._uid)
+            if self._mode != "bwrap":  # no mount namespace: remove what it left in /tmp, /dev/shm, ...
+                for entry in uid_litter(self._uid):
+                    problems = remove_tree(entry) if entry.is_dir() and not entry.is_symlink() else []
+                    if not entry.is_dir() or entry.is_symlink():
+                        try:
+                            entry.unlink()
+                        except OSError as exc:
+                            problems = [f"{entry}: {exc.strerror}"]
+                    self.cleanup_problems += problems
         if self._reply_fd is not None:
             os.close(self._reply_fd)
             self._reply_fd = None
@@ -737,3 +858,74 @@ class Sandbox:
             self._workdir = None
 
 
+
+
+class _Lease:
+    """One exercise in a pooled zygote sandbox: the ``Sandbox`` interface ``run_exercise`` uses."""
+
+    def __init__(self, box: Sandbox) -> None:
+        self._box = box
+
+    def __enter__(self) -> _Lease:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._box.finish()
+
+    def run(self, calls: Sequence[Call], timeout: float | None = None) -> list[Outcome]:
+        return self._box.run(calls, timeout)
+
+    @property
+    def isolation(self) -> str:
+        return self._box.isolation
+
+    @property
+    def cell_errors(self) -> dict[str, str]:
+        return self._box.cell_errors
+
+    @property
+    def stdout(self) -> str:
+        return self._box.stdout
+
+
+class SandboxPool:
+    """Sandboxes of one student, reused across the student's exercises (a zygote per key).
+
+    Called like :class:`Sandbox` (``pool(cells, blocked=..., allowed=..., limits=...)``), it returns
+    a context manager with ``run``, ``isolation``, ``cell_errors`` and ``stdout``. Exercises whose
+    sandboxes would be the same (:attr:`Sandbox.key`: the same file system view, limits and hidden
+    paths) share one sandboxed process that imported numpy once; each exercise runs in a child it
+    forks, with that exercise's own import guard and audit hook, and between two exercises the
+    zygote kills every other process of the sandbox and empties its writable folders. A child that
+    crashes, times out or exceeds a limit takes the whole sandbox down (the next exercise starts a
+    new one), exactly as without the pool. Never shared between students: :meth:`close` kills all.
+    Where a zygote cannot be used (the fallback as an ordinary user) every exercise gets a fresh
+    sandbox.
+    """
+
+    def __init__(self) -> None:
+        self._boxes: dict[tuple, Sandbox] = {}
+
+    def __call__(self, cells: Sequence[tuple[str, str]], **kwargs: Any) -> Any:
+        box = Sandbox(cells, zygote=True, **kwargs)
+        if not box._zygote:
+            return box
+        old = self._boxes.get(box.key)
+        if old is None:
+            self._boxes[box.key] = box
+            return _Lease(box)
+        box.close()
+        old.prepare(cells, blocked=kwargs.get("blocked", ()), allowed=kwargs.get("allowed"))
+        return _Lease(old)
+
+    def __enter__(self) -> SandboxPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Kill every sandbox of the pool."""
+        boxes, self._boxes = list(self._boxes.values()), {}
+        for box in boxes:
+            box.close()
