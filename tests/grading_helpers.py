@@ -44,6 +44,8 @@ def use_sandbox_mode(mode: str, monkeypatch, tmp_path_factory) -> str:
     seccomp profile), so the grader picks the setpriv mode by itself (skipped when not root).
     """
     import os
+    import tempfile
+    from pathlib import Path
 
     from flowtrack.grading.isolation import bwrap_status, choose_mode
 
@@ -59,13 +61,16 @@ def use_sandbox_mode(mode: str, monkeypatch, tmp_path_factory) -> str:
             import pytest
 
             pytest.skip("the setpriv mode needs root (as in a Gradescope container)")
-        stub = tmp_path_factory.getbasetemp() / "failing-bwrap"
+        # where the probe's unprivileged uid can run it (pytest's own temporary folders are private)
+        stub = Path(tempfile.gettempdir()) / "flowtrack-test-failing-bwrap"
         if not stub.exists():
-            stub.write_text(
+            tmp = stub.with_name(f"{stub.name}.{os.getpid()}")
+            tmp.write_text(
                 "#!/bin/sh\necho 'bwrap: No permissions to creating new namespace, likely because the "
                 "kernel does not allow non-privileged user namespaces.' >&2\nexit 1\n"
             )
-            stub.chmod(0o755)
+            tmp.chmod(0o755)
+            os.replace(tmp, stub)
         monkeypatch.setenv("FLOWTRACK_BWRAP", str(stub))
         monkeypatch.delenv("FLOWTRACK_SANDBOX", raising=False)
         chosen, why = choose_mode()

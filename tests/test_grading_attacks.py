@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack.grading.sandbox import Limits, Sandbox, SandboxPool, bwrap_status
 from grading_helpers import SANDBOX_MODES, use_sandbox_mode
 
 from flowtrack.grading.spec import Call, Outcome, compare_arrays
@@ -50,18 +50,43 @@ def strong(request, monkeypatch, tmp_path_factory):
     return use_sandbox_mode(request.param, monkeypatch, tmp_path_factory)
 
 
+NEXT_EXERCISE = """
+import os, tempfile
+def probe():
+    return [sorted(os.listdir(".")), sorted(os.listdir(tempfile.gettempdir())), "add" in globals()]
+"""
+
+
 def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=()) -> tuple[float, list]:
-    """Score the toy exercise: fraction of 3 add-calls within tolerance, then check mul still works."""
+    """Score the toy exercise: fraction of 3 add-calls within tolerance, then check mul still works.
+
+    Run twice: in a fresh Sandbox, and as one exercise of a SandboxPool (the fast path of
+    ``flowtrack grade``: a zygote forking a child per exercise) followed by another exercise in the
+    same pool, which must start clean (empty HOME and TMPDIR, none of the attack's names). Both must
+    score alike; the pooled run's outcomes are returned.
+    """
     rng = np.random.default_rng(seed)
     pairs = [(rng.normal(size=(4, 3)), rng.normal(size=(4, 3))) for _ in range(3)]
     src = "import numpy as np\n" + cell + HONEST_MUL
-    with Sandbox([("answer", src)], limits=LIMITS, blocked=blocked, hidden_paths=hidden) as sb:
-        outcomes = sb.run([Call("add", p) for p in pairs], timeout=timeout)
-        score = np.mean([compare_arrays(o, a + b)[0] for o, (a, b) in zip(outcomes, pairs)])
-        x = rng.normal(size=5)
-        after = sb.run([Call("mul", (x, 3.0))], timeout=10)  # other tests go on
-    assert compare_arrays(after[0], x * 3.0)[0], after[0]
-    return float(score), outcomes
+    x = rng.normal(size=5)
+    runs = []
+    for pooled in (False, True):
+        pool = SandboxPool()
+        factory = pool if pooled else Sandbox
+        with factory([("answer", src)], limits=LIMITS, blocked=blocked, hidden_paths=hidden) as sb:
+            outcomes = sb.run([Call("add", p) for p in pairs], timeout=timeout)
+            score = np.mean([compare_arrays(o, a + b)[0] for o, (a, b) in zip(outcomes, pairs)])
+            after = sb.run([Call("mul", (x, 3.0))], timeout=10)  # other tests go on
+        assert compare_arrays(after[0], x * 3.0)[0], after[0]
+        if pooled:
+            with pool([("next", NEXT_EXERCISE)], limits=LIMITS, blocked=blocked, hidden_paths=hidden) as nx:
+                (probe,) = nx.run([Call("probe")], timeout=10)
+            assert probe.ok and probe.value == [[], [], False], probe
+        pool.close()
+        runs.append((float(score), outcomes))
+    (plain, plain_out), (score, outcomes) = runs
+    assert plain == score and [o.ok for o in plain_out] == [o.ok for o in outcomes], (plain_out, outcomes)
+    return score, outcomes
 
 
 def test_honest_answers_score_and_wrong_answers_do_not(mode):
