@@ -137,64 +137,113 @@ def _wipe(roots, litter_roots):
                 os.unlink(path)
 
 
-def _zygote(msg, reply_fd, stdlib_paths):
-    """Serve one student's exercises: numpy is imported once here, each exercise runs in a forked
-    child (its own import guard, audit hook, namespace and rusage), and between two children every
-    process the child left is killed and the writable folders are emptied; then ``{"op": "clean"}``.
-    A child that dies otherwise takes the zygote with it (same exit status), so the grader sees
-    the death exactly as without a zygote."""
-    import signal
+def _survivors(me):
+    """Processes of this sandbox other than the zygote (and bubblewrap's init): under bubblewrap
+    /proc is the sandbox's pid namespace; otherwise the processes of this (per-sandbox) uid."""
+    uid = os.getuid()
+    out = []
+    for name in os.listdir("/proc"):
+        if not name.isdigit() or int(name) in (me, 1):
+            continue
+        try:
+            if os.stat(f"/proc/{name}").st_uid != uid:
+                continue
+            with open(f"/proc/{name}/stat") as fh:
+                if fh.read().rsplit(")", 1)[1].split()[0] == "Z":
+                    continue
+        except (OSError, IndexError):
+            continue
+        out.append(int(name))
+    return out
 
+
+def _zygote(msg, reply_fd, stdlib_paths):
+    """Serve exercises one after the other, each in a child forked from here (numpy and the
+    ``preload`` modules imported once, before any student code exists).
+
+    The zygote never reads student data: per exercise the grader sends, over the control socket
+    (fd ``msg["control"]``), the two ends of a fresh pair of pipes; the forked child reads its
+    init message (the cells) and the calls from the first and replies on the second. Once the child
+    is gone the zygote kills every other process of the sandbox, checks that none is left, empties
+    the writable folders and answers ``clean``. A child that dies otherwise (crash, limit, exit)
+    takes the zygote with it, with the same status, so the grader sees the death as without one.
+    The zygote is not dumpable: its children (the same uid) can neither ptrace it nor open its
+    memory or descriptors through /proc.
+    """
+    import ctypes
+    import signal
+    import socket
+
+    ctl = socket.socket(fileno=int(msg["control"]))
     _setup(msg)
     import numpy  # noqa: F401  - the point: forked children start with it imported
 
+    for name in msg.get("preload", ()):
+        try:
+            __import__(name)
+        except Exception:
+            pass
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(4, 0, 0, 0, 0)  # PR_SET_DUMPABLE = 0
+    except Exception:
+        os._exit(4)
     devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, 1)
-    os.dup2(devnull, 2)
+    for fd in (0, 1, 2):
+        os.dup2(devnull, fd)
     os.close(devnull)
     wipe_roots = list(msg.get("wipe", ()))
     litter_roots = list(msg.get("litter", ()))
     data = json.dumps({"op": "zygote-ready"}).encode()
     os.write(reply_fd, struct.pack(">I", len(data)) + data)
+    os.close(reply_fd)
+    me = os.getpid()
     while True:
         try:
-            init = _read_msg()
-        except EOFError:
+            data, fds, _, _ = socket.recv_fds(ctl, 64, 2)
+        except OSError:
             os._exit(0)
-        if init.get("op") != "init":
+        if data != b"fork" or len(fds) != 2:
             os._exit(0)
+        req, rep = fds
         pid = os.fork()
         if pid == 0:
             try:
-                _serve(init, reply_fd, stdlib_paths)
+                ctl.close()
+                os.dup2(req, 0)
+                os.close(req)
+                _serve(_read_msg(), rep, stdlib_paths)
             finally:
                 os._exit(1)
+        os.close(req)
+        os.close(rep)
         _, status = os.waitpid(pid, 0)
         if os.WIFSIGNALED(status):
             sig = os.WTERMSIG(status)
             signal.signal(sig, signal.SIG_DFL)
-            os.kill(os.getpid(), sig)
+            os.kill(me, sig)
             os._exit(128 + sig)
         code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else 1
         if code != _CLEAN_EXIT:
             os._exit(code)
-        if msg.get("reap"):  # everything of this sandbox but the zygote (and bubblewrap's init)
-            for _ in range(3):
-                try:
-                    os.kill(-1, signal.SIGKILL)
-                except OSError:
-                    pass
+        for _ in range(20):  # everything of this sandbox but the zygote (and bubblewrap's init)
+            try:
+                os.kill(-1, signal.SIGKILL)
+            except OSError:
+                pass
             try:
                 while os.waitpid(-1, os.WNOHANG)[0]:
                     pass
             except ChildProcessError:
                 pass
+            if not _survivors(me):
+                break
+        else:
+            os._exit(3)  # something survived: the grader discards this sandbox
         try:
             _wipe(wipe_roots, litter_roots)
         except Exception:
-            os._exit(3)  # the grader then discards this sandbox
-        data = json.dumps({"op": "clean"}).encode()
-        os.write(reply_fd, struct.pack(">I", len(data)) + data)
+            os._exit(3)
+        ctl.send(b"clean")
 
 
 def main():

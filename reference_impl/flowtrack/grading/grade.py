@@ -489,6 +489,7 @@ def grade_student(
     hidden_paths: Sequence[str | os.PathLike] = (),
     renamed: dict[str, str] | None = None,
     reuse_sandboxes: bool = True,
+    sandbox_pool: Any = None,
 ) -> dict:
     """Grade one student's folder; write ``out/<student>/feedback/*`` then ``results.json``.
 
@@ -499,10 +500,11 @@ def grade_student(
     ``secret`` keys the hidden tests' seeds (see :func:`run_exercise`); results made with another
     key (or none) are not kept on a re-run. ``renamed`` (``{exercise id: path in the folder}``, from
     :mod:`.layout`, ``flowtrack grade --accept-renamed``) grades renamed copies of missing notebooks.
-    ``reuse_sandboxes`` (default, with the real sandbox): the student's exercises share sandboxes
-    (:class:`~flowtrack.grading.sandbox.SandboxPool`: one sandboxed process per kind of exercise that
-    forks a clean child per exercise), which scores the same as a fresh sandbox per exercise and
-    saves most of the start-up time; ``False`` starts a fresh sandbox per exercise.
+    ``reuse_sandboxes`` (default, with the real sandbox): exercises run in the sandboxes of a
+    :class:`~flowtrack.grading.sandbox.SandboxPool` (one sandboxed process per kind of exercise that
+    forks a clean child per exercise), ``sandbox_pool`` when given (:func:`grade_class` shares one
+    per worker process between students), else one for this student; it scores the same as a fresh
+    sandbox per exercise and saves most of the start-up time. ``False``: a fresh sandbox per exercise.
     Returns ``{"student", "skipped", "score", "max_score", "exercises": {id: score}, "isolation"}``.
     """
     student_dir = Path(student_dir)
@@ -537,9 +539,12 @@ def grade_student(
     results = []
     pool = None
     if sandbox_factory is None and reuse_sandboxes:
-        from .sandbox import SandboxPool
+        if sandbox_pool is not None:
+            sandbox_factory = sandbox_pool
+        else:
+            from .sandbox import SandboxPool
 
-        pool = sandbox_factory = SandboxPool()
+            pool = sandbox_factory = SandboxPool(_preload(exercises))
     try:
         for ex in exercises:
             try:
@@ -606,6 +611,36 @@ def list_students(submissions: str | os.PathLike) -> list[str]:
     return names
 
 
+def _preload(exercises: Sequence[Exercise]) -> tuple[str, ...]:
+    """What a zygote may import before forking: the modules the exercises' allowlists name."""
+    return tuple(dict.fromkeys(a for ex in exercises for a in (ex.allowed or ())))
+
+
+_POOLS: dict[tuple, Any] = {}
+
+
+def _shared_pool(preload: tuple[str, ...]) -> Any:
+    """This process's :class:`~flowtrack.grading.sandbox.SandboxPool` (a grading worker's): its
+    zygotes serve one student after the other; closed when the process exits."""
+    pool = _POOLS.get(preload)
+    if pool is None:
+        from multiprocessing import util
+
+        from .sandbox import SandboxPool
+
+        pool = _POOLS[preload] = SandboxPool(preload)
+        util.Finalize(None, pool.close, exitpriority=10)  # run at a worker's exit (atexit is not)
+    return pool
+
+
+def close_shared_pools() -> None:
+    """Kill the sandboxes of this process's shared pools."""
+    pools = list(_POOLS.values())
+    _POOLS.clear()
+    for pool in pools:
+        pool.close()
+
+
 def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_factory=None) -> dict:
     """Grade one task of :func:`grade_class`; ``exercises`` default to the registry's by id."""
     (student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids, secret, hidden,
@@ -619,6 +654,7 @@ def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_fa
             student, student_dir, exercises, out, force=force, hidden_visibility=hidden_visibility,
             ex_hash=ex_hash, sandbox_factory=sandbox_factory, secret=secret, hidden_paths=hidden,
             renamed=renamed, reuse_sandboxes=reuse,
+            sandbox_pool=_shared_pool(_preload(exercises)) if reuse and sandbox_factory is None else None,
         )
     except Exception as exc:  # reported in the summary, the class goes on
         try:  # no results.json of an earlier run may stand for this one
@@ -731,9 +767,12 @@ def grade_class(
     summaries: dict[str, dict] = {}
     bar = tqdm(total=len(tasks), desc="grading", unit="student", disable=not progress)
     if jobs == 1 or len(tasks) <= 1 or custom:
-        for task in tasks:
-            summaries[task[0]] = _worker(task, exercises, sandbox_factory)
-            bar.update(1)
+        try:
+            for task in tasks:
+                summaries[task[0]] = _worker(task, exercises, sandbox_factory)
+                bar.update(1)
+        finally:
+            close_shared_pools()
     else:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed

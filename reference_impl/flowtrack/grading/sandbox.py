@@ -71,6 +71,7 @@ import resource
 import select
 import shutil
 import signal
+import socket
 import struct
 import subprocess
 import tempfile
@@ -247,6 +248,7 @@ class Sandbox:
         hidden_paths: Sequence[str | Path] = (),
         allowed: Sequence[str] | None = None,
         zygote: bool = False,
+        preload: Sequence[str] = (),
     ) -> None:
         self._configure(cells, blocked, allowed)
         if not isinstance(limits, Limits):
@@ -262,6 +264,7 @@ class Sandbox:
         self._zygote = bool(zygote) and (self._mode == "bwrap" or os.geteuid() == 0)
         self._child_live = False
         self._nproc_child: int | None = None
+        self._preload = tuple(preload)
         self._init_common(workdir_parent)
 
     def _configure(self, cells, blocked, allowed) -> None:
@@ -304,6 +307,8 @@ class Sandbox:
             )
         self._proc: subprocess.Popen | None = None
         self._reply_fd: int | None = None
+        self._req_fd: int | None = None  # where requests go: the child's stdin, or its pipe from a zygote
+        self._ctl: socket.socket | None = None  # a zygote's control socket
         self._stderr = None
         self._workdir: Path | None = None
         self._cgroup: SandboxCgroup | None = None
@@ -495,6 +500,8 @@ class Sandbox:
         self._cpu_used = 0.0
         deadline = time.monotonic() + timeout
         try:
+            if self._zygote:
+                self._fork_child()
             self._send(init, deadline)
             reply = self._recv(deadline, self.limits.output_bytes, timeout, starting=True)
         except _ChildGone:
@@ -525,15 +532,24 @@ class Sandbox:
         self._cgroup = SandboxCgroup.create(self._cgroup_memory(), self.limits.processes + 5)
         self.cgroup = self._cgroup.kind if self._cgroup is not None else ""
         self._stderr = tempfile.TemporaryFile()
+        ctl_child = None
+        ctl_fd = -1
+        if self._zygote:
+            self._ctl, ctl_child = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+            ctl_fd = ctl_child.fileno()
         try:
             self._proc = subprocess.Popen(
                 [*cmd, str(w)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._stderr,
-                pass_fds=(w,), env=env, cwd=str(workdir / "home"), start_new_session=True,
-                preexec_fn=self._preexec(nproc_outer),
+                pass_fds=(w,) if ctl_child is None else (w, ctl_child.fileno()), env=env,
+                cwd=str(workdir / "home"), start_new_session=True, preexec_fn=self._preexec(nproc_outer),
             )
         finally:
             os.close(w)
+            if ctl_child is not None:
+                ctl_child.close()
         self._reply_fd = r
+        assert self._proc.stdin is not None
+        self._req_fd = self._proc.stdin.fileno()
         if not self._zygote:
             return
         if self._mode == "bwrap":
@@ -542,8 +558,9 @@ class Sandbox:
             wipe, litter = [str(workdir / "home"), str(workdir / "tmp")], list(WORLD_WRITABLE)
         deadline = time.monotonic() + timeout
         try:
-            self._send({"op": "zygote", "paths": init["paths"], "nproc": nproc_child, "reap": True,
-                        "wipe": wipe, "litter": litter}, deadline)
+            preload = [] if self.key[2] else [m for m in self._preload if m.split(".")[0] in (self._packages or ())]
+            self._send({"op": "zygote", "paths": init["paths"], "nproc": nproc_child, "preload": preload,
+                        "control": ctl_fd, "wipe": wipe, "litter": litter}, deadline)
             reply = self._recv(deadline, 1024, timeout, starting=True)
         except _ChildGone:
             self._kill()
@@ -551,13 +568,42 @@ class Sandbox:
         if not (isinstance(reply, dict) and reply.get("op") == "zygote-ready"):
             self._kill()
             raise _ChildGone("the sandbox sent an invalid start-up reply")
+        os.close(self._reply_fd)  # from now on each exercise's child gets pipes of its own
+        self._reply_fd = self._req_fd = None
+
+    def _fork_child(self) -> None:
+        """Ask the zygote for a child with a fresh pair of pipes (passed over the control socket)."""
+        assert self._ctl is not None
+        self._close_child_pipes()
+        req_r, req_w = os.pipe()
+        rep_r, rep_w = os.pipe()
+        try:
+            socket.send_fds(self._ctl, [b"fork"], [req_r, rep_w])
+        except OSError:
+            for fd in (req_r, req_w, rep_r, rep_w):
+                os.close(fd)
+            raise _ChildGone(self._death_message()) from None
+        finally:
+            pass
+        os.close(req_r)
+        os.close(rep_w)
+        self._req_fd, self._reply_fd = req_w, rep_r
+
+    def _close_child_pipes(self) -> None:
+        if self._ctl is None or self._proc is None or self._req_fd == self._proc.stdin.fileno():
+            return
+        for name in ("_req_fd", "_reply_fd"):
+            fd = getattr(self, name)
+            if fd is not None:
+                os.close(fd)
+                setattr(self, name, None)
 
     # -- I/O -----------------------------------------------------------------------------------------
     def _send(self, msg: dict, deadline: float) -> None:
         data = json.dumps(msg, allow_nan=True).encode("utf-8")
         buf = memoryview(struct.pack(">I", len(data)) + data)
-        assert self._proc is not None and self._proc.stdin is not None
-        fd = self._proc.stdin.fileno()
+        assert self._proc is not None and self._req_fd is not None
+        fd = self._req_fd
         while buf:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -761,6 +807,8 @@ class Sandbox:
     def finish(self) -> None:
         """End the current exercise's child; a zygote then cleans up and waits for the next
         (:meth:`prepare`). Without a zygote (or when anything goes wrong) the sandbox is killed."""
+        if self._zygote and self._proc is not None and not self._child_live:
+            return  # no child was started for this exercise (e.g. no calls): the zygote waits
         if not self._zygote or not self._child_live or self._proc is None:
             self._kill()
             return
@@ -768,12 +816,21 @@ class Sandbox:
         try:
             deadline = time.monotonic() + max(10.0, self.limits.wall_seconds)
             self._send({"op": "end"}, deadline)
-            reply = self._recv(deadline, 1024, max(10.0, self.limits.wall_seconds))
-            if not (isinstance(reply, dict) and reply.get("op") == "clean"):
+            self._close_child_pipes()
+            assert self._ctl is not None
+            while True:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise _ChildGone("the zygote did not clean up in time")
+                readable, _, _ = select.select([self._ctl], [], [], min(left, _DISK_POLL))
+                self._check_disk()
+                if readable:
+                    break
+            if self._ctl.recv(64) != b"clean":
                 raise _ChildGone("the zygote did not clean up")
             self._next_disk_check = 0.0
             self._check_disk()
-        except _ChildGone:
+        except (_ChildGone, OSError):
             self._kill()
 
     def prepare(self, cells: Sequence[tuple[str, str]], *, blocked: Sequence[str] = (),
@@ -791,6 +848,7 @@ class Sandbox:
     def _kill(self) -> None:
         self._child_live = False
         p, self._proc = self._proc, None
+        stdin_fd = p.stdin.fileno() if p is not None and p.stdin is not None and not p.stdin.closed else None
         if p is not None:
             # Kill bubblewrap's children first (the pid namespace's init: its death kills the whole
             # namespace) so that bubblewrap reaps them; killing bubblewrap first leaves zombies for
@@ -844,6 +902,12 @@ class Sandbox:
         if self._reply_fd is not None:
             os.close(self._reply_fd)
             self._reply_fd = None
+        if self._ctl is not None:
+            if self._req_fd is not None and self._req_fd != stdin_fd:
+                os.close(self._req_fd)
+            self._ctl.close()
+            self._ctl = None
+        self._req_fd = None
         if self._stderr is not None:
             self._stderr.close()
             self._stderr = None
@@ -903,11 +967,12 @@ class SandboxPool:
     sandbox.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, preload: Sequence[str] = ()) -> None:
         self._boxes: dict[tuple, Sandbox] = {}
+        self.preload = tuple(preload)
 
     def __call__(self, cells: Sequence[tuple[str, str]], **kwargs: Any) -> Any:
-        box = Sandbox(cells, zygote=True, **kwargs)
+        box = Sandbox(cells, zygote=True, preload=self.preload, **kwargs)
         if not box._zygote:
             return box
         old = self._boxes.get(box.key)
