@@ -124,7 +124,7 @@ def test_pooled_grading_scores_exactly_like_a_sandbox_per_exercise(class_dir, tm
     # the point of the pool: a handful of sandboxes for the class instead of one per exercise
     n_tasks = len(students) * len(EXERCISES)
     assert launches[False] >= n_tasks - len(students)  # (missing notebooks start none)
-    assert launches[True] <= 6, launches
+    assert launches[True] <= launches[False] // 4, launches  # restarts only after a crash or a limit
 
 
 LEAVER = """
