@@ -16,9 +16,8 @@ import numpy as np
 import pytest
 
 from flowtrack.grading.sandbox import Limits, Sandbox, SandboxPool, bwrap_status
-from grading_helpers import SANDBOX_MODES, use_sandbox_mode
-
 from flowtrack.grading.spec import Call, Outcome, compare_arrays
+from grading_helpers import SANDBOX_MODES, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 

@@ -15,10 +15,9 @@ import pytest
 
 from flowtrack.grading.exercises import EXERCISES, get_exercise
 from flowtrack.grading.grade import run_exercise
-from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
-from grading_helpers import SANDBOX_MODES, use_sandbox_mode
-
+from flowtrack.grading.sandbox import Limits, Sandbox
 from flowtrack.grading.spec import Call
+from grading_helpers import SANDBOX_MODES, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 

@@ -18,9 +18,8 @@ import pytest
 from flowtrack.grading.cgroups import cgroup_status
 from flowtrack.grading.isolation import remove_tree, tree_usage
 from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
-from grading_helpers import SANDBOX_MODES, use_sandbox_mode
-
 from flowtrack.grading.spec import Call
+from grading_helpers import SANDBOX_MODES, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -121,7 +120,7 @@ def attack():
 """
     limits = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16)
     out = _run_attack(mode, cell, Call("attack"), limits)
-    if mode in ("fallback", "setpriv"):  # deeper than the meter's limit: stopped as a violation of the disk limit
+    if mode in ("fallback", "setpriv"):  # deeper than the meter's limit: a violation of the disk limit
         assert not out.ok and "disk limit" in out.error, out
 
 

@@ -22,12 +22,12 @@ from pathlib import Path
 
 import nbformat
 import pytest
-from grading_helpers import use_sandbox_mode
 
 from flowtrack.grading.exercises import get_exercise
 from flowtrack.grading.gradescope import build_autograder
 from flowtrack.grading.isolation import readable_by_sandbox
 from flowtrack.grading.release import release_notebook
+from grading_helpers import use_sandbox_mode
 
 pytestmark = [
     pytest.mark.xdist_group("sandbox"),
@@ -100,7 +100,8 @@ def autograder(tmp_path, monkeypatch, tmp_path_factory):
             if c.get("metadata", {}).get("nbgrader", {}).get("grade_id") == EX.answer_cells[0]:
                 c.source = ATTACK.format(root=str(root)) + "".join(c.source)
         nbformat.write(stub, sub / Path(EX.notebook).name)
-        (root / "submission_metadata.json").write_text(json.dumps({"users": [{"id": "4242", "email": "a@b"}]}))
+        meta = {"users": [{"id": "4242", "email": "a@b"}]}
+        (root / "submission_metadata.json").write_text(json.dumps(meta))
         os.chmod(root / "submission_metadata.json", 0o644)
         yield root
     finally:
@@ -111,7 +112,7 @@ def test_gradescope_without_namespaces_isolates_by_uid(autograder):
     root = autograder
     before = _snapshot(root)
     env = dict(os.environ, AUTOGRADER_ROOT=str(root), FLOWTRACK_PYTHON=sys.executable,
-               # the grader imports the zip's flowtrack (made private by run_autograder), as setup.sh installs it
+               # the grader imports the zip's flowtrack (private after run_autograder), as after setup.sh
                PYTHONPATH=str(root / "source" / "flowtrack" / "reference_impl"))
     r = subprocess.run(["bash", str(root / "source" / "run_autograder")], env=env, capture_output=True,
                        text=True, timeout=600)
@@ -140,8 +141,9 @@ def test_gradescope_refuses_to_grade_when_the_sandbox_could_read_the_key(autogra
     assert readable_by_sandbox([exposed, secret]) == [str(exposed)]  # 0600 root: unreadable
     results = tmp_path / "results.json"
     r = subprocess.run(
-        [sys.executable, "-m", "flowtrack.grading.gradescope", "run", "--submission", str(root / "submission"),
-         "--results", str(results), "--student", "4242", "--exercises", "ex05", "--secret-file", str(exposed)],
+        [sys.executable, "-m", "flowtrack.grading.gradescope", "run", "--submission",
+         str(root / "submission"), "--results", str(results), "--student", "4242", "--exercises", "ex05",
+         "--secret-file", str(exposed)],
         capture_output=True, text=True, timeout=300, env=dict(os.environ),
     )
     assert r.returncode == 1

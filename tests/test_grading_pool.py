@@ -14,7 +14,6 @@ from pathlib import Path
 
 import nbformat
 import pytest
-from grading_helpers import use_sandbox_mode
 
 from flowtrack.grading import sandbox as sandbox_mod
 from flowtrack.grading.exercises import EXERCISES
@@ -22,6 +21,7 @@ from flowtrack.grading.grade import grade_class
 from flowtrack.grading.release import release_notebook
 from flowtrack.grading.sandbox import Limits, SandboxPool
 from flowtrack.grading.spec import Call
+from grading_helpers import use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 

@@ -1,11 +1,12 @@
-"""``flowtrack grade``: batch autograding of a class, one sandbox per student and exercise.
+"""``flowtrack grade``: batch autograding of a class, each student's exercise in a sandboxed child.
 
 The grading process never imports or executes student code. For each student and exercise it
 extracts the answer cells of the student's notebook by their nbgrader ``grade_id``, starts a
-:class:`~flowtrack.grading.sandbox.Sandbox` with them, and for each :class:`GradedTest` builds the
-calls from a seeded generator, runs them in the child, and scores the plain-data outcomes with the
-test's trusted scorer. A test earns ``points x fraction`` with ``fraction`` from the scorer alone, so
-the score of a test is
+:class:`~flowtrack.grading.sandbox.Sandbox` with them (by default a child forked by a zygote of a
+:class:`~flowtrack.grading.sandbox.SandboxPool` shared by the worker's students), and for each
+:class:`GradedTest` builds the calls from a seeded generator, runs them in the child, and scores the
+plain-data outcomes with the test's trusted scorer. A test earns ``points x fraction`` with
+``fraction`` from the scorer alone, so the score of a test is
 
 .. math:: s_t = p_t \\, \\mathrm{clip}(f_t, 0, 1), \\qquad S = \\sum_t s_t \\le \\sum_t p_t .
 
@@ -549,8 +550,8 @@ def grade_student(
         for ex in exercises:
             try:
                 r = run_exercise(
-                    ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory, secret=secret,
-                    hidden_paths=hidden_paths,
+                    ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory,
+                    secret=secret, hidden_paths=hidden_paths,
                 )
             except Exception as exc:  # one broken exercise must not lose the others
                 r = ExerciseResult(ex.id, ex.title, ex.notebook)

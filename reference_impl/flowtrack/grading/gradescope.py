@@ -275,7 +275,7 @@ def run_submission(
             from .exercises import EXERCISES as exercises
         with tempfile.TemporaryDirectory(prefix="flowtrack-gs-") as tmp:
             summary = grade_student(student, submission, tuple(exercises), tmp, force=True, secret=secret,
-                                    hidden_paths=tuple(hidden_paths) + (tmp,))
+                                    hidden_paths=(*hidden_paths, tmp))
             data = json.loads((Path(tmp) / student / "results.json").read_text(encoding="utf-8"))
         if summary.get("isolation", "").startswith("fallback"):
             data["output"] += f"\n(sandbox isolation: {summary['isolation']})"
@@ -340,8 +340,9 @@ def _isolation_problem(protect: list[Path], allow_unsafe: bool) -> str:
     except SandboxUnavailable as exc:
         return f"autograder configuration error: {exc}"
     if mode == "fallback" and not allow_unsafe:
-        return (f"autograder configuration error: student code cannot be isolated here ({why}); run the "
-                "autograder as root (Gradescope does) with util-linux's setpriv, or pass --allow-unsafe-sandbox")
+        return (f"autograder configuration error: student code cannot be isolated here ({why}); run "
+                "the autograder as root (Gradescope does) with util-linux's setpriv, or pass "
+                "--allow-unsafe-sandbox")
     if mode == "setpriv":
         exposed = readable_by_sandbox(protect)
         if exposed:

@@ -45,6 +45,34 @@ grader controls everything else. Defences, outermost first, and what each one st
    and opening protected paths; fd 1/2 point at /dev/null and
    ``print`` goes to a capped buffer, so student output cannot mix with replies.
 
+setpriv (``isolation == "setpriv"``): where bubblewrap cannot create namespaces (Docker's default
+seccomp profile: a Gradescope container) and the grader is root, the child is started through
+util-linux's ``setpriv`` as a fresh unprivileged uid of its own (group of the same number, no
+supplementary groups, empty capability sets, ``no_new_privs``), with the fallback's limits, folder
+and in-process guard on top. What protects the grader is then the kernel's permission checks, so
+the key, the tests, the submissions and the grader's output must not be readable by other users:
+``flowtrack grade`` and the Gradescope runner check that for real
+(:func:`~flowtrack.grading.isolation.readable_by_sandbox`) and refuse to grade otherwise; the
+Gradescope ``setup.sh``/``run_autograder`` set the modes. The uid cannot signal or ptrace the grader
+(another uid), cannot write anywhere but its folder and the machine's world-writable folders, whose
+entries of its uid are counted against the disk limit and removed with the sandbox. Unlike
+bubblewrap it can see the machine's other world-readable files and its network.
+``FLOWTRACK_SANDBOX=setpriv`` forces it; ``FLOWTRACK_BWRAP`` names the bubblewrap binary (tests point
+it at a failing stub to run as Gradescope does).
+
+Zygotes (:class:`SandboxPool`, what ``flowtrack grade`` uses): starting a sandboxed interpreter and
+numpy costs ~0.3 s, more than most exercises take. A pool keeps one sandbox per kind of exercise
+(:attr:`Sandbox.key`: the same file system view, limits and hidden paths) whose process, the zygote,
+imported numpy (and the allowlists' modules when nothing in its view is blocked) before any student
+code existed, and forks a child per exercise that installs that exercise's import guard and audit
+hook and runs its cells: each exercise starts from the same clean state as a fresh sandbox, and
+scores the same. The zygote never reads student data (each child reads its cells and calls from
+pipes of its own, passed over a control socket), is not dumpable (its children cannot ptrace it or
+open its memory), and after each child it kills every other process of the sandbox, checks that
+none survived, and empties HOME and ``/tmp``; a child that crashes or exceeds a limit takes the
+zygote down with it, and the next exercise starts a new sandbox. In ``flowtrack grade`` a worker's
+zygotes serve its students one after the other.
+
 Fallback (``isolation == "fallback: <why>"``): when bubblewrap is missing or namespaces are not
 allowed (a student's laptop running ``flowtrack check``), the child is a plain subprocess with the
 same limits, an empty temporary cwd, ``-I -S``, the filtered flowtrack copy, and (as root) a
@@ -55,7 +83,8 @@ grade`` passes the submissions, its output folder and the key file), sockets and
 This is best effort: a determined student can get around an in-process hook (e.g. through ctypes),
 which is why ``flowtrack grade`` refuses the fallback unless ``--allow-unsafe-sandbox`` is given
 (``flowtrack check``, a student's own run, falls back with a warning).
-``FLOWTRACK_SANDBOX=fallback`` forces the fallback, ``FLOWTRACK_SANDBOX=bwrap`` requires bubblewrap.
+``FLOWTRACK_SANDBOX=fallback`` forces the fallback, ``FLOWTRACK_SANDBOX=bwrap`` requires bubblewrap;
+unset, the sandbox uses bubblewrap, else setpriv (as root), else the fallback.
 
 The prepared copies the sandbox reads are kept between runs in a cache (:mod:`flowtrack.grading.cache`);
 :mod:`flowtrack.grading.runtime` makes them, :mod:`flowtrack.grading.isolation` starts and ends the
@@ -69,7 +98,6 @@ import math
 import os
 import resource
 import select
-import shutil
 import signal
 import socket
 import struct
@@ -220,13 +248,19 @@ class Sandbox:
         message naming the allowlist, and the fallback's audit hook refuses the files of the others.
         Within an allowed package the granularity is the top-level package (``blocked`` still
         removes submodules). ``None`` (default): everything installed, minus ``blocked``.
+    zygote : bool
+        Keep the sandboxed process between exercises and fork a child per exercise (:meth:`prepare`,
+        :meth:`finish`; see "Zygotes" above). Ignored in the fallback without root.
+    preload : sequence of str
+        Modules a zygote imports before forking (those of packages in its view, when nothing there
+        is blocked).
 
     Attributes
     ----------
     cell_errors : dict of str to str
         ``grade_id -> error text`` of cells that raised when executed (known after the first start).
     isolation : str
-        ``"bwrap"`` or ``"fallback: <why>"``.
+        ``"bwrap"``, ``"setpriv"`` or ``"fallback: <why>"``.
     stdout : str
         What the student's code printed during the last batch (truncated; never used for scores).
 
@@ -558,7 +592,8 @@ class Sandbox:
             wipe, litter = [str(workdir / "home"), str(workdir / "tmp")], list(WORLD_WRITABLE)
         deadline = time.monotonic() + timeout
         try:
-            preload = [] if self.key[2] else [m for m in self._preload if m.split(".")[0] in (self._packages or ())]
+            in_view = self._packages or ()
+            preload = [] if self.key[2] else [m for m in self._preload if m.split(".")[0] in in_view]
             self._send({"op": "zygote", "paths": init["paths"], "nproc": nproc_child, "preload": preload,
                         "control": ctl_fd, "wipe": wipe, "litter": litter}, deadline)
             reply = self._recv(deadline, 1024, timeout, starting=True)
