@@ -17,7 +17,7 @@ import pytest
 
 from flowtrack.grading.cgroups import cgroup_status
 from flowtrack.grading.isolation import remove_tree, tree_usage
-from flowtrack.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack.grading.sandbox import Limits, Sandbox, SandboxPool, bwrap_status
 from flowtrack.grading.spec import Call
 from grading_helpers import SANDBOX_MODES, use_sandbox_mode
 
@@ -48,8 +48,19 @@ def _chain(root: Path, depth: int, name: str = "d") -> None:
         os.close(fd)
 
 
+NEXT = """
+import os, tempfile
+def probe():
+    return [sorted(os.listdir(".")), sorted(os.listdir(tempfile.gettempdir()))]
+"""
+
+
 def _run_attack(mode, cell, call, limits, expect_gone=True):
-    """The attack's outcome; then an honest call in the same Sandbox; then nothing left outside."""
+    """The attack's outcome; then an honest call in the same Sandbox; then nothing left outside.
+
+    Also as one exercise of a SandboxPool (zygote), whose next exercise must start clean; both runs
+    must agree on whether the attack's call failed. The plain run's outcome is returned.
+    """
     with Sandbox([("a", HONEST + cell)], limits=limits) as sb:
         (out,) = sb.run([call], timeout=limits.wall_seconds)
         workdir = sb._workdir
@@ -58,6 +69,17 @@ def _run_attack(mode, cell, call, limits, expect_gone=True):
         assert after.ok and after.value == (2 * x).tolist(), after
     assert workdir is None or not workdir.exists(), f"left behind: {workdir}"
     assert sb.cleanup_problems == []
+    with SandboxPool() as pool:
+        with pool([("a", HONEST + cell)], limits=limits) as lease:
+            (pooled,) = lease.run([call], timeout=limits.wall_seconds)
+            (after,) = lease.run([Call("mul", (x, 2.0))], timeout=20)
+            assert after.ok and after.value == (2 * x).tolist(), after
+        with pool([("next", NEXT)], limits=limits) as nxt:
+            (probe,) = nxt.run([Call("probe")], timeout=20)
+        assert probe.ok and probe.value == [[], []], probe
+        boxes = list(pool._boxes.values())
+    assert all(b._workdir is None and b.cleanup_problems == [] for b in boxes)
+    assert pooled.ok == out.ok, (out, pooled)
     return out
 
 

@@ -187,6 +187,10 @@ def _zygote(msg, reply_fd, stdlib_paths):
         ctypes.CDLL(None, use_errno=True).prctl(4, 0, 0, 0, 0)  # PR_SET_DUMPABLE = 0
     except Exception:
         os._exit(4)
+    # The zygote's own CPU (forks, clean-ups) may run up to the lifetime ceiling; each child gets
+    # back the soft limit a fresh sandbox has (RLIMIT_CPU counts a process's own time).
+    cpu_soft, cpu_hard = resource.getrlimit(resource.RLIMIT_CPU)
+    resource.setrlimit(resource.RLIMIT_CPU, (cpu_hard, cpu_hard))
     devnull = os.open(os.devnull, os.O_WRONLY)
     for fd in (0, 1, 2):
         os.dup2(devnull, fd)
@@ -208,6 +212,7 @@ def _zygote(msg, reply_fd, stdlib_paths):
         pid = os.fork()
         if pid == 0:
             try:
+                resource.setrlimit(resource.RLIMIT_CPU, (cpu_soft, cpu_hard))
                 ctl.close()
                 os.dup2(req, 0)
                 os.close(req)

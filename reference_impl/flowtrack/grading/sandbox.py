@@ -154,6 +154,7 @@ MiB = 1 << 20
 _SANDBOX_HOME = "/home/student"
 _OPT = "/opt/flowtrack-sandbox"
 _DISK_POLL = 0.2  # seconds between measurements of the child's directory while waiting for it
+_ZYGOTE_FORKS = 256  # exercises a zygote serves before it is replaced (bounds its own CPU time)
 
 
 @dataclass(frozen=True)
@@ -299,6 +300,7 @@ class Sandbox:
         self._child_live = False
         self._nproc_child: int | None = None
         self._preload = tuple(preload)
+        self._forks = 0  # exercises the current zygote has served
         self._init_common(workdir_parent)
 
     def _configure(self, cells, blocked, allowed) -> None:
@@ -535,6 +537,7 @@ class Sandbox:
         deadline = time.monotonic() + timeout
         try:
             if self._zygote:
+                self._forks += 1
                 self._fork_child()
             self._send(init, deadline)
             reply = self._recv(deadline, self.limits.output_bytes, timeout, starting=True)
@@ -582,6 +585,7 @@ class Sandbox:
             if ctl_child is not None:
                 ctl_child.close()
         self._reply_fd = r
+        self._forks = 0
         assert self._proc.stdin is not None
         self._req_fd = self._proc.stdin.fileno()
         if not self._zygote:
@@ -863,6 +867,8 @@ class Sandbox:
                     break
             if self._ctl.recv(64) != b"clean":
                 raise _ChildGone("the zygote did not clean up")
+            if self._forks >= _ZYGOTE_FORKS:
+                raise _ChildGone("replaced after serving many exercises")
             self._next_disk_check = 0.0
             self._check_disk()
         except (_ChildGone, OSError):
