@@ -62,7 +62,7 @@ def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=()) -
     Run twice: in a fresh Sandbox, and as one exercise of a SandboxPool (the fast path of
     ``flowtrack grade``: a zygote forking a child per exercise) followed by another exercise in the
     same pool, which must start clean (empty HOME and TMPDIR, none of the attack's names). Both must
-    score alike; the pooled run's outcomes are returned.
+    score the same; the pooled run's outcomes are returned.
     """
     rng = np.random.default_rng(seed)
     pairs = [(rng.normal(size=(4, 3)), rng.normal(size=(4, 3))) for _ in range(3)]
@@ -84,7 +84,9 @@ def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=()) -
         pool.close()
         runs.append((float(score), outcomes))
     (plain, plain_out), (score, outcomes) = runs
-    assert plain == score and [o.ok for o in plain_out] == [o.ok for o in outcomes], (plain_out, outcomes)
+    # (which calls fail may differ: a student who kills its zygote, the same uid, loses the rest of
+    # its own batch, which a fresh sandbox's init would have survived; the score may not differ)
+    assert plain == score, (plain_out, outcomes)
     return score, outcomes
 
 
