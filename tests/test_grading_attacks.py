@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtrack_course.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack_course.grading.sandbox import Limits, Sandbox, SandboxPool, bwrap_status
 from flowtrack_course.grading.spec import Call, Outcome, compare_arrays
+from grading_helpers import SANDBOX_MODES, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -31,13 +32,9 @@ def _bwrap(monkeypatch):
     monkeypatch.setenv("FLOWTRACK_SANDBOX", "bwrap")
 
 
-@pytest.fixture(params=["bwrap", "fallback"])
-def mode(request, monkeypatch):
-    if request.param == "bwrap":
-        _bwrap(monkeypatch)
-    else:
-        monkeypatch.setenv("FLOWTRACK_SANDBOX", "fallback")
-    return request.param
+@pytest.fixture(params=SANDBOX_MODES)
+def mode(request, monkeypatch, tmp_path_factory):
+    return use_sandbox_mode(request.param, monkeypatch, tmp_path_factory)
 
 
 @pytest.fixture
@@ -46,18 +43,51 @@ def bwrap_only(monkeypatch):
     return "bwrap"
 
 
+@pytest.fixture(params=["bwrap", "setpriv"])
+def strong(request, monkeypatch, tmp_path_factory):
+    """The modes that hold against code going around the in-process hook (namespaces, a uid)."""
+    return use_sandbox_mode(request.param, monkeypatch, tmp_path_factory)
+
+
+NEXT_EXERCISE = """
+import os, tempfile
+def probe():
+    return [sorted(os.listdir(".")), sorted(os.listdir(tempfile.gettempdir())), "add" in globals()]
+"""
+
+
 def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=()) -> tuple[float, list]:
-    """Score the toy exercise: fraction of 3 add-calls within tolerance, then check mul still works."""
+    """Score the toy exercise: fraction of 3 add-calls within tolerance, then check mul still works.
+
+    Run twice: in a fresh Sandbox, and as one exercise of a SandboxPool (the fast path of
+    ``flowtrack grade``: a zygote forking a child per exercise) followed by another exercise in the
+    same pool, which must start clean (empty HOME and TMPDIR, none of the attack's names). Both must
+    score the same; the pooled run's outcomes are returned.
+    """
     rng = np.random.default_rng(seed)
     pairs = [(rng.normal(size=(4, 3)), rng.normal(size=(4, 3))) for _ in range(3)]
     src = "import numpy as np\n" + cell + HONEST_MUL
-    with Sandbox([("answer", src)], limits=LIMITS, blocked=blocked, hidden_paths=hidden) as sb:
-        outcomes = sb.run([Call("add", p) for p in pairs], timeout=timeout)
-        score = np.mean([compare_arrays(o, a + b)[0] for o, (a, b) in zip(outcomes, pairs)])
-        x = rng.normal(size=5)
-        after = sb.run([Call("mul", (x, 3.0))], timeout=10)  # other tests go on
-    assert compare_arrays(after[0], x * 3.0)[0], after[0]
-    return float(score), outcomes
+    x = rng.normal(size=5)
+    runs = []
+    for pooled in (False, True):
+        pool = SandboxPool()
+        factory = pool if pooled else Sandbox
+        with factory([("answer", src)], limits=LIMITS, blocked=blocked, hidden_paths=hidden) as sb:
+            outcomes = sb.run([Call("add", p) for p in pairs], timeout=timeout)
+            score = np.mean([compare_arrays(o, a + b)[0] for o, (a, b) in zip(outcomes, pairs)])
+            after = sb.run([Call("mul", (x, 3.0))], timeout=10)  # other tests go on
+        assert compare_arrays(after[0], x * 3.0)[0], after[0]
+        if pooled:
+            with pool([("next", NEXT_EXERCISE)], limits=LIMITS, blocked=blocked, hidden_paths=hidden) as nx:
+                (probe,) = nx.run([Call("probe")], timeout=10)
+            assert probe.ok and probe.value == [[], [], False], probe
+        pool.close()
+        runs.append((float(score), outcomes))
+    (plain, plain_out), (score, outcomes) = runs
+    # (which calls fail may differ: a student who kills its zygote, the same uid, loses the rest of
+    # its own batch, which a fresh sandbox's init would have survived; the score may not differ)
+    assert plain == score, (plain_out, outcomes)
+    return score, outcomes
 
 
 def test_honest_answers_score_and_wrong_answers_do_not(mode):
@@ -227,7 +257,7 @@ def test_memory_bomb(mode):
     assert score == 0.0 and "memory" in outcomes[0].error
 
 
-def test_fork_bomb(bwrap_only):
+def test_fork_bomb(strong):
     cell = """
 import os
 def add(a, b):
@@ -391,7 +421,7 @@ def test_forged_replies_on_the_reply_channel(mode):
         assert ("timed out" if name == "drip" else "not valid data") in outcomes[0].error, outcomes[0]
 
 
-def test_a_grandchild_holding_the_reply_pipe_dies_with_the_sandbox(bwrap_only):
+def test_a_grandchild_holding_the_reply_pipe_dies_with_the_sandbox(strong):
     cell = """
 import os, time
 def add(a, b):
@@ -423,7 +453,7 @@ def add(a, b):
             os.kill(target, signal.SIGKILL)
         except (OSError, PermissionError):
             pass
-    if MODE == "bwrap":  # ctypes goes around any in-process hook; only the namespaces stop it
+    if MODE in ("bwrap", "setpriv"):  # ctypes goes around any in-process hook: namespaces or the uid stop it
         libc = ctypes.CDLL(None)
         libc.kill(os.getppid(), 9)
         libc.kill(-1, 9)

@@ -15,8 +15,9 @@ import pytest
 
 from flowtrack_course.grading.exercises import EXERCISES, get_exercise
 from flowtrack_course.grading.grade import run_exercise
-from flowtrack_course.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack_course.grading.sandbox import Limits, Sandbox
 from flowtrack_course.grading.spec import Call
+from grading_helpers import SANDBOX_MODES, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -24,13 +25,9 @@ REPO = Path(__file__).resolve().parents[1]
 LIMITS = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16)
 
 
-@pytest.fixture(params=["bwrap", "fallback"])
-def mode(request, monkeypatch):
-    if request.param == "bwrap":
-        ok, why = bwrap_status()
-        assert ok, f"bubblewrap must work for the attack tests (make test installs it): {why}"
-    monkeypatch.setenv("FLOWTRACK_SANDBOX", request.param)
-    return request.param
+@pytest.fixture(params=SANDBOX_MODES)
+def mode(request, monkeypatch, tmp_path_factory):
+    return use_sandbox_mode(request.param, monkeypatch, tmp_path_factory)
 
 
 def _may_import(notebook: Path) -> tuple[str, ...]:

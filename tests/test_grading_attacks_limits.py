@@ -17,8 +17,9 @@ import pytest
 
 from flowtrack_course.grading.cgroups import cgroup_status
 from flowtrack_course.grading.isolation import remove_tree, tree_usage
-from flowtrack_course.grading.sandbox import Limits, Sandbox, bwrap_status
+from flowtrack_course.grading.sandbox import Limits, Sandbox, SandboxPool, bwrap_status
 from flowtrack_course.grading.spec import Call
+from grading_helpers import SANDBOX_MODES, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -27,13 +28,9 @@ HONEST = "import numpy as np\ndef mul(a, b):\n    return np.asarray(a) * b\n"
 needs_cgroup = pytest.mark.skipif(not cgroup_status()[0], reason=f"no cgroup: {cgroup_status()[1]}")
 
 
-@pytest.fixture(params=["bwrap", "fallback"])
-def mode(request, monkeypatch):
-    if request.param == "bwrap":
-        ok, why = bwrap_status()
-        assert ok, f"bubblewrap must work for the attack tests (make test installs it): {why}"
-    monkeypatch.setenv("FLOWTRACK_SANDBOX", request.param)
-    return request.param
+@pytest.fixture(params=SANDBOX_MODES)
+def mode(request, monkeypatch, tmp_path_factory):
+    return use_sandbox_mode(request.param, monkeypatch, tmp_path_factory)
 
 
 def _chain(root: Path, depth: int, name: str = "d") -> None:
@@ -51,8 +48,19 @@ def _chain(root: Path, depth: int, name: str = "d") -> None:
         os.close(fd)
 
 
+NEXT = """
+import os, tempfile
+def probe():
+    return [sorted(os.listdir(".")), sorted(os.listdir(tempfile.gettempdir()))]
+"""
+
+
 def _run_attack(mode, cell, call, limits, expect_gone=True):
-    """The attack's outcome; then an honest call in the same Sandbox; then nothing left outside."""
+    """The attack's outcome; then an honest call in the same Sandbox; then nothing left outside.
+
+    Also as one exercise of a SandboxPool (zygote), whose next exercise must start clean; both runs
+    must agree on whether the attack's call failed. The plain run's outcome is returned.
+    """
     with Sandbox([("a", HONEST + cell)], limits=limits) as sb:
         (out,) = sb.run([call], timeout=limits.wall_seconds)
         workdir = sb._workdir
@@ -61,6 +69,17 @@ def _run_attack(mode, cell, call, limits, expect_gone=True):
         assert after.ok and after.value == (2 * x).tolist(), after
     assert workdir is None or not workdir.exists(), f"left behind: {workdir}"
     assert sb.cleanup_problems == []
+    with SandboxPool() as pool:
+        with pool([("a", HONEST + cell)], limits=limits) as lease:
+            (pooled,) = lease.run([call], timeout=limits.wall_seconds)
+            (after,) = lease.run([Call("mul", (x, 2.0))], timeout=20)
+            assert after.ok and after.value == (2 * x).tolist(), after
+        with pool([("next", NEXT)], limits=limits) as nxt:
+            (probe,) = nxt.run([Call("probe")], timeout=20)
+        assert probe.ok and probe.value == [[], []], probe
+        boxes = list(pool._boxes.values())
+    assert all(b._workdir is None and b.cleanup_problems == [] for b in boxes)
+    assert pooled.ok == out.ok, (out, pooled)
     return out
 
 
@@ -123,7 +142,7 @@ def attack():
 """
     limits = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16)
     out = _run_attack(mode, cell, Call("attack"), limits)
-    if mode == "fallback":  # deeper than the meter's limit: stopped as a violation of the disk limit
+    if mode in ("fallback", "setpriv"):  # deeper than the meter's limit: a violation of the disk limit
         assert not out.ok and "disk limit" in out.error, out
 
 

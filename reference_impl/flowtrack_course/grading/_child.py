@@ -80,21 +80,191 @@ class _Capped:
         return text[:_MAX_TEXT]
 
 
+_CLEAN_EXIT = 165  # an exercise's child that received "end" (the zygote then cleans and goes on)
+
+
+def _setup(msg):
+    for p in msg["paths"]:
+        if p not in sys.path:
+            sys.path.append(p)
+    nproc = msg.get("nproc")
+    if nproc is not None:
+        try:
+            resource.setrlimit(resource.RLIMIT_NPROC, (nproc, nproc))
+        except (ValueError, OSError):
+            pass
+
+
+def _wipe(roots, litter_roots):
+    """Empty the writable folders between two exercises of one student (the zygote's own uid owns
+    everything in them); also what this uid left in the machine's world-writable folders."""
+    import shutil
+
+    def fix(func, path, exc):
+        parent = os.path.dirname(path)
+        os.chmod(parent, 0o700)
+        if os.path.isdir(path) and not os.path.islink(path):
+            os.chmod(path, 0o700)
+            shutil.rmtree(path, onerror=fix)
+        else:
+            func(path)
+
+    uid = os.getuid()
+    for root in roots:
+        for name in os.listdir(root):
+            path = os.path.join(root, name)
+            if os.path.isdir(path) and not os.path.islink(path):
+                os.chmod(path, 0o700)
+                shutil.rmtree(path, onerror=fix)
+            else:
+                os.unlink(path)
+    for root in litter_roots:
+        try:
+            names = os.listdir(root)
+        except OSError:
+            continue
+        for name in names:
+            path = os.path.join(root, name)
+            try:
+                if os.lstat(path).st_uid != uid:
+                    continue
+            except OSError:
+                continue
+            if os.path.isdir(path) and not os.path.islink(path):
+                os.chmod(path, 0o700)
+                shutil.rmtree(path, onerror=fix)
+            else:
+                os.unlink(path)
+
+
+def _survivors(me):
+    """Processes of this sandbox other than the zygote (and bubblewrap's init): under bubblewrap
+    /proc is the sandbox's pid namespace; otherwise the processes of this (per-sandbox) uid."""
+    uid = os.getuid()
+    out = []
+    for name in os.listdir("/proc"):
+        if not name.isdigit() or int(name) in (me, 1):
+            continue
+        try:
+            if os.stat(f"/proc/{name}").st_uid != uid:
+                continue
+            with open(f"/proc/{name}/stat") as fh:
+                if fh.read().rsplit(")", 1)[1].split()[0] == "Z":
+                    continue
+        except (OSError, IndexError):
+            continue
+        out.append(int(name))
+    return out
+
+
+def _zygote(msg, reply_fd, stdlib_paths):
+    """Serve exercises one after the other, each in a child forked from here (numpy and the
+    ``preload`` modules imported once, before any student code exists).
+
+    The zygote never reads student data: per exercise the grader sends, over the control socket
+    (fd ``msg["control"]``), the two ends of a fresh pair of pipes; the forked child reads its
+    init message (the cells) and the calls from the first and replies on the second. Once the child
+    is gone the zygote kills every other process of the sandbox, checks that none is left, empties
+    the writable folders and answers ``clean``. A child that dies otherwise (crash, limit, exit)
+    takes the zygote with it, with the same status, so the grader sees the death as without one.
+    The zygote is not dumpable: its children (the same uid) can neither ptrace it nor open its
+    memory or descriptors through /proc.
+    """
+    import ctypes
+    import signal
+    import socket
+
+    ctl = socket.socket(fileno=int(msg["control"]))
+    _setup(msg)
+    import numpy  # noqa: F401  - the point: forked children start with it imported
+
+    for name in msg.get("preload", ()):
+        try:
+            __import__(name)
+        except Exception:
+            pass
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(4, 0, 0, 0, 0)  # PR_SET_DUMPABLE = 0
+    except Exception:
+        os._exit(4)
+    # The zygote's own CPU (forks, clean-ups) may run up to the lifetime ceiling; each child gets
+    # back the soft limit a fresh sandbox has (RLIMIT_CPU counts a process's own time).
+    cpu_soft, cpu_hard = resource.getrlimit(resource.RLIMIT_CPU)
+    resource.setrlimit(resource.RLIMIT_CPU, (cpu_hard, cpu_hard))
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for fd in (0, 1, 2):
+        os.dup2(devnull, fd)
+    os.close(devnull)
+    wipe_roots = list(msg.get("wipe", ()))
+    litter_roots = list(msg.get("litter", ()))
+    data = json.dumps({"op": "zygote-ready"}).encode()
+    os.write(reply_fd, struct.pack(">I", len(data)) + data)
+    os.close(reply_fd)
+    me = os.getpid()
+    while True:
+        try:
+            data, fds, _, _ = socket.recv_fds(ctl, 64, 2)
+        except OSError:
+            os._exit(0)
+        if data != b"fork" or len(fds) != 2:
+            os._exit(0)
+        req, rep = fds
+        pid = os.fork()
+        if pid == 0:
+            try:
+                resource.setrlimit(resource.RLIMIT_CPU, (cpu_soft, cpu_hard))
+                ctl.close()
+                os.dup2(req, 0)
+                os.close(req)
+                _serve(_read_msg(), rep, stdlib_paths)
+            finally:
+                os._exit(1)
+        os.close(req)
+        os.close(rep)
+        _, status = os.waitpid(pid, 0)
+        if os.WIFSIGNALED(status):
+            sig = os.WTERMSIG(status)
+            signal.signal(sig, signal.SIG_DFL)
+            os.kill(me, sig)
+            os._exit(128 + sig)
+        code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else 1
+        if code != _CLEAN_EXIT:
+            os._exit(code)
+        for _ in range(20):  # everything of this sandbox but the zygote (and bubblewrap's init)
+            try:
+                os.kill(-1, signal.SIGKILL)
+            except OSError:
+                pass
+            try:
+                while os.waitpid(-1, os.WNOHANG)[0]:
+                    pass
+            except ChildProcessError:
+                pass
+            if not _survivors(me):
+                break
+        else:
+            os._exit(3)  # something survived: the grader discards this sandbox
+        try:
+            _wipe(wipe_roots, litter_roots)
+        except Exception:
+            os._exit(3)
+        ctl.send(b"clean")
+
+
 def main():
     reply_fd = os.dup(int(sys.argv[1]))
     os.close(int(sys.argv[1]))
     os.set_inheritable(reply_fd, False)
     init = _read_msg()
     stdlib_paths = list(sys.path[1:])  # -I -S: the runner's folder, then only the standard library
-    for p in init["paths"]:
-        if p not in sys.path:
-            sys.path.append(p)
-    nproc = init.get("nproc")
-    if nproc is not None:
-        try:
-            resource.setrlimit(resource.RLIMIT_NPROC, (nproc, nproc))
-        except (ValueError, OSError):
-            pass
+    if init.get("op") == "zygote":
+        _zygote(init, reply_fd, stdlib_paths)
+    else:
+        _serve(init, reply_fd, stdlib_paths)
+
+
+def _serve(init, reply_fd, stdlib_paths):
+    _setup(init)
 
     import numpy as np
 
@@ -283,6 +453,8 @@ def main():
             msg = _read_msg()
         except EOFError:
             os._exit(0)
+        if msg.get("op") == "end":  # the next exercise (the zygote goes on)
+            os._exit(_CLEAN_EXIT)
         usage = resource.getrusage(resource.RUSAGE_SELF)
         used = usage.ru_utime + usage.ru_stime
         try:

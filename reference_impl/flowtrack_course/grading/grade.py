@@ -1,11 +1,12 @@
-"""``flowtrack grade``: batch autograding of a class, one sandbox per student and exercise.
+"""``flowtrack grade``: batch autograding of a class, each student's exercise in a sandboxed child.
 
 The grading process never imports or executes student code. For each student and exercise it
 extracts the answer cells of the student's notebook by their nbgrader ``grade_id``, starts a
-:class:`~flowtrack_course.grading.sandbox.Sandbox` with them, and for each :class:`GradedTest` builds the
-calls from a seeded generator, runs them in the child, and scores the plain-data outcomes with the
-test's trusted scorer. A test earns ``points x fraction`` with ``fraction`` from the scorer alone, so
-the score of a test is
+:class:`~flowtrack_course.grading.sandbox.Sandbox` with them (by default a child forked by a zygote of a
+:class:`~flowtrack_course.grading.sandbox.SandboxPool` shared by the worker's students), and for each
+:class:`GradedTest` builds the calls from a seeded generator, runs them in the child, and scores the
+plain-data outcomes with the test's trusted scorer. A test earns ``points x fraction`` with
+``fraction`` from the scorer alone, so the score of a test is
 
 .. math:: s_t = p_t \\, \\mathrm{clip}(f_t, 0, 1), \\qquad S = \\sum_t s_t \\le \\sum_t p_t .
 
@@ -536,6 +537,8 @@ def grade_student(
     secret: bytes | None = None,
     hidden_paths: Sequence[str | os.PathLike] = (),
     renamed: dict[str, str] | None = None,
+    reuse_sandboxes: bool = True,
+    sandbox_pool: Any = None,
 ) -> dict:
     """Grade one student's folder; write ``out/<student>/feedback/*`` then ``results.json``.
 
@@ -546,6 +549,11 @@ def grade_student(
     ``secret`` keys the hidden tests' seeds (see :func:`run_exercise`); results made with another
     key (or none) are not kept on a re-run. ``renamed`` (``{exercise id: path in the folder}``, from
     :mod:`.layout`, ``flowtrack grade --accept-renamed``) grades renamed copies of missing notebooks.
+    ``reuse_sandboxes`` (default, with the real sandbox): exercises run in the sandboxes of a
+    :class:`~flowtrack_course.grading.sandbox.SandboxPool` (one sandboxed process per kind of exercise that
+    forks a clean child per exercise), ``sandbox_pool`` when given (:func:`grade_class` shares one
+    per worker process between students), else one for this student; it scores the same as a fresh
+    sandbox per exercise and saves most of the start-up time. ``False``: a fresh sandbox per exercise.
     Returns ``{"student", "skipped", "score", "max_score", "exercises": {id: score}, "isolation"}``.
     """
     student_dir = Path(student_dir)
@@ -578,18 +586,30 @@ def grade_student(
                 }
     results_path.unlink(missing_ok=True)
     results = []
-    for ex in exercises:
-        try:
-            r = run_exercise(
-                ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory, secret=secret,
-                hidden_paths=hidden_paths,
-            )
-        except Exception as exc:  # one broken exercise must not lose the others
-            r = ExerciseResult(ex.id, ex.title, ex.notebook)
-            r.problems.append(f"internal grader error: {type(exc).__name__}: {exc}")
-            r.tests = [_zero(t, r.problems[0]) for t in ex.tests]
-        r.problems[:0] = notes.get(ex.id, [])  # issue 18 hook (--accept-renamed)
-        results.append(r)
+    pool = None
+    if sandbox_factory is None and reuse_sandboxes:
+        if sandbox_pool is not None:
+            sandbox_factory = sandbox_pool
+        else:
+            from .sandbox import SandboxPool
+
+            pool = sandbox_factory = SandboxPool(_preload(exercises))
+    try:
+        for ex in exercises:
+            try:
+                r = run_exercise(
+                    ex, notebooks[ex.id], student, limits=limits, sandbox_factory=sandbox_factory,
+                    secret=secret, hidden_paths=hidden_paths,
+                )
+            except Exception as exc:  # one broken exercise must not lose the others
+                r = ExerciseResult(ex.id, ex.title, ex.notebook)
+                r.problems.append(f"internal grader error: {type(exc).__name__}: {exc}")
+                r.tests = [_zero(t, r.problems[0]) for t in ex.tests]
+            r.problems[:0] = notes.get(ex.id, [])  # issue 18 hook (--accept-renamed)
+            results.append(r)
+    finally:
+        if pool is not None:
+            pool.close()
     isolation = next((r.isolation for r in results if r.isolation.startswith("fallback")), "")
     isolation = isolation or next((r.isolation for r in results if r.isolation), "")
     data = results_json(
@@ -640,10 +660,40 @@ def list_students(submissions: str | os.PathLike) -> list[str]:
     return names
 
 
+def _preload(exercises: Sequence[Exercise]) -> tuple[str, ...]:
+    """What a zygote may import before forking: the modules the exercises' allowlists name."""
+    return tuple(dict.fromkeys(a for ex in exercises for a in (ex.allowed or ())))
+
+
+_POOLS: dict[tuple, Any] = {}
+
+
+def _shared_pool(preload: tuple[str, ...]) -> Any:
+    """This process's :class:`~flowtrack_course.grading.sandbox.SandboxPool` (a grading worker's): its
+    zygotes serve one student after the other; closed when the process exits."""
+    pool = _POOLS.get(preload)
+    if pool is None:
+        from multiprocessing import util
+
+        from .sandbox import SandboxPool
+
+        pool = _POOLS[preload] = SandboxPool(preload)
+        util.Finalize(None, pool.close, exitpriority=10)  # run at a worker's exit (atexit is not)
+    return pool
+
+
+def close_shared_pools() -> None:
+    """Kill the sandboxes of this process's shared pools."""
+    pools = list(_POOLS.values())
+    _POOLS.clear()
+    for pool in pools:
+        pool.close()
+
+
 def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_factory=None) -> dict:
     """Grade one task of :func:`grade_class`; ``exercises`` default to the registry's by id."""
     (student, student_dir, out, force, hidden_visibility, ex_hash, exercise_ids, secret, hidden,
-     renamed) = args
+     renamed, reuse) = args
     try:
         if exercises is None:
             from .exercises import get_exercise
@@ -653,7 +703,8 @@ def _worker(args: tuple, exercises: Sequence[Exercise] | None = None, sandbox_fa
         return grade_student(
             student, student_dir, exercises, out, force=force, hidden_visibility=hidden_visibility,
             ex_hash=ex_hash, sandbox_factory=sandbox_factory, secret=secret, hidden_paths=hidden,
-            renamed=renamed,
+            renamed=renamed, reuse_sandboxes=reuse,
+            sandbox_pool=_shared_pool(_preload(exercises)) if reuse and sandbox_factory is None else None,
         )
     except Exception as exc:  # reported in the summary, the class goes on
         try:  # no results.json of an earlier run may stand for this one
@@ -694,6 +745,7 @@ def grade_class(
     allow_unsafe_sandbox: bool = False,
     renamed: dict[str, dict[str, str]] | None = None,
     roster: dict | None = None,
+    reuse_sandboxes: bool = True,
 ) -> list[dict]:
     """Grade every student folder of ``submissions`` into ``out`` (see the module docstring).
 
@@ -712,7 +764,8 @@ def grade_class(
 
     ``jobs`` worker processes grade students in parallel (each runs its own sandboxes); ``jobs=1``
     grades in this process, as do exercises not in the registry and a given ``sandbox_factory``
-    (tests' fakes). Returns one summary dict per student (sorted by student).
+    (tests' fakes). ``reuse_sandboxes`` goes to :func:`grade_student`. Returns one summary dict per
+    student (sorted by student).
     """
     from tqdm.auto import tqdm
 
@@ -735,7 +788,19 @@ def grade_class(
         from .isolation import choose_mode
 
         mode, why = choose_mode()
-        if mode != "bwrap" and not allow_unsafe_sandbox:
+        if mode == "setpriv" and not allow_unsafe_sandbox:
+            # no namespaces: the student's uid sees what file permissions let any user see
+            from .isolation import readable_by_sandbox
+
+            Path(out).mkdir(mode=0o700, parents=True, exist_ok=True)  # a new one: private
+            exposed = readable_by_sandbox(hidden)
+            if exposed:
+                raise UnsafeSandbox(
+                    f"bubblewrap cannot isolate student code here ({why}); the setpriv sandbox runs it as an "
+                    "unprivileged uid, which can read " + ", ".join(exposed) + ". Make them private to "
+                    "the grader (chmod go-rwx " + " ".join(exposed) + "), or pass --allow-unsafe-sandbox."
+                )
+        elif mode != "bwrap" and not allow_unsafe_sandbox:
             raise UnsafeSandbox(
                 f"bubblewrap cannot isolate student code here ({why}). The fallback sandbox runs it as a "
                 "plain process behind an in-process audit hook that a determined student can get around "
@@ -750,15 +815,18 @@ def grade_class(
     reserved = [s for s in students if s.lower() in RESERVED_NAMES]
     tasks = [
         (s, str(Path(submissions) / s), str(out), force, hidden_visibility, ex_hash,
-         tuple(ex.id for ex in exercises), secret, hidden, (renamed or {}).get(s))
+         tuple(ex.id for ex in exercises), secret, hidden, (renamed or {}).get(s), reuse_sandboxes)
         for s in students if s not in reserved
     ]
     summaries: dict[str, dict] = {}
     bar = tqdm(total=len(tasks), desc="grading", unit="student", disable=not progress)
     if jobs == 1 or len(tasks) <= 1 or custom:
-        for task in tasks:
-            summaries[task[0]] = _worker(task, exercises, sandbox_factory)
-            bar.update(1)
+        try:
+            for task in tasks:
+                summaries[task[0]] = _worker(task, exercises, sandbox_factory)
+                bar.update(1)
+        finally:
+            close_shared_pools()
     else:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed

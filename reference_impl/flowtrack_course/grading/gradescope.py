@@ -46,7 +46,7 @@ SETUP_SH = """\
 set -euo pipefail
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq
-apt-get install -y -qq python3 python3-venv python3-pip bubblewrap
+apt-get install -y -qq python3 python3-venv python3-pip bubblewrap util-linux
 # the toolchains of answers in C++, Octave and Java (Mathematica answers: mathics3, in the grader extra)
 apt-get install -y -qq g++ libeigen3-dev nlohmann-json3-dev octave openjdk-17-jdk-headless \
     libgoogle-gson-java libejml-java
@@ -62,9 +62,15 @@ python3 -m venv /autograder/venv
 # scikit-image or Jupyter; then flowtrack itself without its dependencies.
 /autograder/venv/bin/pip install -q -r /autograder/source/requirements-grader.txt
 /autograder/venv/bin/pip install -q --no-deps "/autograder/source/flowtrack"
-# Student code runs as an unprivileged uid that must read the venv (numpy) but nothing else.
+# Student code runs as a fresh unprivileged uid per sandbox: under bubblewrap where it can create
+# namespaces, else (Docker's default seccomp profile) switched to with setpriv (util-linux), no
+# capabilities, no_new_privs. That uid needs the Python runtime and numpy/scipy of the venv, and
+# nothing of the grader: the installed flowtrack (its grading package holds the tests; the sandbox
+# gets a filtered copy) and /autograder/source (the key) are the grader's only.
 chmod o+x /autograder
 chmod -R a+rX /autograder/venv
+FT_DIR="$(/autograder/venv/bin/python -c 'import flowtrack, os; print(os.path.dirname(flowtrack.__file__))')"
+chmod -R go-rwx "$FT_DIR" /autograder/source
 """
 
 RUN_AUTOGRADER = r"""#!/usr/bin/env bash
@@ -77,6 +83,10 @@ EXERCISES="${FLOWTRACK_EXERCISES:-@EXERCISES@}"  # flowtrack gradescope --exerci
 RESULTS="$ROOT/results/results.json"
 mkdir -p "$ROOT/results"
 rm -f "$RESULTS"
+# Only the grader (root) may read or write these; the student's code runs as another uid.
+chmod 700 "$ROOT/results"
+chmod -R go-rwx "$ROOT/source" "$ROOT/submission" 2>/dev/null
+[ -f "$ROOT/submission_metadata.json" ] && chmod go-rwx "$ROOT/submission_metadata.json"
 SECRET=()
 if [ -f "$ROOT/source/secret" ]; then  # the instructor's seed key (flowtrack gradescope --secret-file)
     chmod 600 "$ROOT/source/secret"
@@ -259,6 +269,7 @@ def run_submission(
     student: str = "submission",
     exercises=None,
     secret: bytes | None = None,
+    hidden_paths=(),
 ) -> dict:
     """Grade one Gradescope submission folder and write ``results`` (Gradescope's results.json).
 
@@ -277,7 +288,8 @@ def run_submission(
 
             exercises = (*EXERCISES, *answered_exercises(submission))
         with tempfile.TemporaryDirectory(prefix="flowtrack-gs-") as tmp:
-            summary = grade_student(student, submission, tuple(exercises), tmp, force=True, secret=secret)
+            summary = grade_student(student, submission, tuple(exercises), tmp, force=True, secret=secret,
+                                    hidden_paths=(*hidden_paths, tmp))
             data = json.loads((Path(tmp) / student / "results.json").read_text(encoding="utf-8"))
         if summary.get("isolation", "").startswith("fallback"):
             data["output"] += f"\n(sandbox isolation: {summary['isolation']})"
@@ -299,6 +311,8 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--student", default=None, help="student id (default: from --metadata)")
     run.add_argument("--exercises", default=None, help="comma-separated exercise ids (default: all)")
     run.add_argument("--secret-file", default=None, help="the instructor's seed key (the zip's secret)")
+    run.add_argument("--allow-unsafe-sandbox", action="store_true",
+                     help="grade even when student code can only run in the fallback sandbox")
     args = parser.parse_args(argv)
     try:
         student = args.student or student_from_metadata(args.metadata)
@@ -315,9 +329,42 @@ def main(argv: list[str] | None = None) -> int:
             secret = read_secret(args.secret_file)
     except Exception as exc:  # issue 18: an explicit error result, never no results.json
         return _error_result(args.results, f"autograder configuration error: {type(exc).__name__}: {exc}")
-    data = run_submission(args.submission, args.results, student=student, exercises=exercises, secret=secret)
+    protect = [Path(args.results).resolve().parent, Path(__file__).resolve().parent / "exercises",
+               *(Path(f) for f in (args.secret_file, args.metadata) if f)]
+    problem = _isolation_problem([p for p in protect if p.exists()], args.allow_unsafe_sandbox)
+    if problem:
+        return _error_result(args.results, problem)
+    hidden = [args.submission, *protect]
+    data = run_submission(args.submission, args.results, student=student, exercises=exercises, secret=secret,
+                          hidden_paths=hidden)
     print(f"flowtrack autograder: {student}: score {data.get('score', 0):g}", file=sys.stderr)
     return 0
+
+
+def _isolation_problem(protect: list[Path], allow_unsafe: bool) -> str:
+    """Why student code cannot be isolated from the grader here ("" when it can).
+
+    bubblewrap shows the sandbox none of the autograder's files. Without it (Docker's default seccomp
+    profile forbids the namespaces), the setpriv mode runs student code as an unprivileged uid, which
+    holds only while file permissions keep ``protect`` (results folder, key, tests, metadata) from
+    it: checked for real. The fallback (no root, no setpriv) is refused unless ``allow_unsafe``.
+    """
+    from .isolation import SandboxUnavailable, choose_mode, readable_by_sandbox
+
+    try:
+        mode, why = choose_mode()
+    except SandboxUnavailable as exc:
+        return f"autograder configuration error: {exc}"
+    if mode == "fallback" and not allow_unsafe:
+        return (f"autograder configuration error: student code cannot be isolated here ({why}); run "
+                "the autograder as root (Gradescope does) with util-linux's setpriv, or pass "
+                "--allow-unsafe-sandbox")
+    if mode == "setpriv":
+        exposed = readable_by_sandbox(protect)
+        if exposed:
+            return ("autograder configuration error: the sandbox's unprivileged uid could read "
+                    + ", ".join(map(str, exposed)) + " (run_autograder makes them private: chmod go-rwx)")
+    return ""
 
 
 def _error_result(results: str | os.PathLike, message: str) -> int:

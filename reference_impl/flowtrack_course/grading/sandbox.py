@@ -45,6 +45,34 @@ grader controls everything else. Defences, outermost first, and what each one st
    and opening protected paths; fd 1/2 point at /dev/null and
    ``print`` goes to a capped buffer, so student output cannot mix with replies.
 
+setpriv (``isolation == "setpriv"``): where bubblewrap cannot create namespaces (Docker's default
+seccomp profile: a Gradescope container) and the grader is root, the child is started through
+util-linux's ``setpriv`` as a fresh unprivileged uid of its own (group of the same number, no
+supplementary groups, empty capability sets, ``no_new_privs``), with the fallback's limits, folder
+and in-process guard on top. What protects the grader is then the kernel's permission checks, so
+the key, the tests, the submissions and the grader's output must not be readable by other users:
+``flowtrack grade`` and the Gradescope runner check that for real
+(:func:`~flowtrack_course.grading.isolation.readable_by_sandbox`) and refuse to grade otherwise; the
+Gradescope ``setup.sh``/``run_autograder`` set the modes. The uid cannot signal or ptrace the grader
+(another uid), cannot write anywhere but its folder and the machine's world-writable folders, whose
+entries of its uid are counted against the disk limit and removed with the sandbox. Unlike
+bubblewrap it can see the machine's other world-readable files and its network.
+``FLOWTRACK_SANDBOX=setpriv`` forces it; ``FLOWTRACK_BWRAP`` names the bubblewrap binary (tests point
+it at a failing stub to run as Gradescope does).
+
+Zygotes (:class:`SandboxPool`, what ``flowtrack grade`` uses): starting a sandboxed interpreter and
+numpy costs ~0.3 s, more than most exercises take. A pool keeps one sandbox per kind of exercise
+(:attr:`Sandbox.key`: the same file system view, limits and hidden paths) whose process, the zygote,
+imported numpy (and the allowlists' modules when nothing in its view is blocked) before any student
+code existed, and forks a child per exercise that installs that exercise's import guard and audit
+hook and runs its cells: each exercise starts from the same clean state as a fresh sandbox, and
+scores the same. The zygote never reads student data (each child reads its cells and calls from
+pipes of its own, passed over a control socket), is not dumpable (its children cannot ptrace it or
+open its memory), and after each child it kills every other process of the sandbox, checks that
+none survived, and empties HOME and ``/tmp``; a child that crashes or exceeds a limit takes the
+zygote down with it, and the next exercise starts a new sandbox. In ``flowtrack grade`` a worker's
+zygotes serve its students one after the other.
+
 Fallback (``isolation == "fallback: <why>"``): when bubblewrap is missing or namespaces are not
 allowed (a student's laptop running ``flowtrack check``), the child is a plain subprocess with the
 same limits, an empty temporary cwd, ``-I -S``, the filtered flowtrack copy, and (as root) a
@@ -55,7 +83,8 @@ grade`` passes the submissions, its output folder and the key file), sockets and
 This is best effort: a determined student can get around an in-process hook (e.g. through ctypes),
 which is why ``flowtrack grade`` refuses the fallback unless ``--allow-unsafe-sandbox`` is given
 (``flowtrack check``, a student's own run, falls back with a warning).
-``FLOWTRACK_SANDBOX=fallback`` forces the fallback, ``FLOWTRACK_SANDBOX=bwrap`` requires bubblewrap.
+``FLOWTRACK_SANDBOX=fallback`` forces the fallback, ``FLOWTRACK_SANDBOX=bwrap`` requires bubblewrap;
+unset, the sandbox uses bubblewrap, else setpriv (as root), else the fallback.
 
 The prepared copies the sandbox reads are kept between runs in a cache
 (:mod:`flowtrack_course.grading.cache`); :mod:`flowtrack_course.grading.runtime` makes them,
@@ -70,8 +99,8 @@ import math
 import os
 import resource
 import select
-import shutil
 import signal
+import socket
 import struct
 import subprocess
 import tempfile
@@ -85,8 +114,10 @@ from typing import Any
 from .cache import cache_root, live_copy, world_readable
 from .cgroups import SandboxCgroup
 from .isolation import (
+    WORLD_WRITABLE,
     SandboxUnavailable,
     bwrap_base,
+    bwrap_path,
     bwrap_status,
     choose_mode,
     descendants,
@@ -95,8 +126,10 @@ from .isolation import (
     mount_usage,
     remove_tree,
     sandbox_uid,
+    setpriv_command,
     signal_name,
     tree_usage,
+    uid_litter,
     unlinked_bytes,
     user_tasks,
 )
@@ -115,13 +148,14 @@ from .runtime import (
 from .spec import Call, Outcome
 from .wire import is_plain, to_wire
 
-__all__ = ["Limits", "Sandbox", "SandboxUnavailable", "bwrap_status"]
+__all__ = ["Limits", "Sandbox", "SandboxPool", "SandboxUnavailable", "bwrap_status"]
 
 GiB = 1 << 30
 MiB = 1 << 20
 _SANDBOX_HOME = "/home/student"
 _OPT = "/opt/flowtrack-sandbox"
 _DISK_POLL = 0.2  # seconds between measurements of the child's directory while waiting for it
+_ZYGOTE_FORKS = 256  # exercises a zygote serves before it is replaced (bounds its own CPU time)
 
 
 @dataclass(frozen=True)
@@ -216,13 +250,19 @@ class Sandbox:
         message naming the allowlist, and the fallback's audit hook refuses the files of the others.
         Within an allowed package the granularity is the top-level package (``blocked`` still
         removes submodules). ``None`` (default): everything installed, minus ``blocked``.
+    zygote : bool
+        Keep the sandboxed process between exercises and fork a child per exercise (:meth:`prepare`,
+        :meth:`finish`; see "Zygotes" above). Ignored in the fallback without root.
+    preload : sequence of str
+        Modules a zygote imports before forking (those of packages in its view, when nothing there
+        is blocked).
 
     Attributes
     ----------
     cell_errors : dict of str to str
         ``grade_id -> error text`` of cells that raised when executed (known after the first start).
     isolation : str
-        ``"bwrap"`` or ``"fallback: <why>"``.
+        ``"bwrap"``, ``"setpriv"`` or ``"fallback: <why>"``.
     stdout : str
         What the student's code printed during the last batch (truncated; never used for scores).
 
@@ -243,7 +283,29 @@ class Sandbox:
         workdir_parent: Path | None = None,
         hidden_paths: Sequence[str | Path] = (),
         allowed: Sequence[str] | None = None,
+        zygote: bool = False,
+        preload: Sequence[str] = (),
     ) -> None:
+        self._configure(cells, blocked, allowed)
+        if not isinstance(limits, Limits):
+            raise TypeError("limits must be a Limits")
+        self.limits = limits
+        self.hidden_paths = tuple(str(Path(p).resolve()) for p in hidden_paths)
+        self.cell_errors: dict[str, str] = {}
+        self.stdout = ""
+        self._mode, why = choose_mode()
+        self.isolation = self._mode if self._mode in ("bwrap", "setpriv") else f"fallback: {why}"
+        # a zygote needs a sandbox whose every process may be killed at once: bubblewrap's pid
+        # namespace, or a per-sandbox uid (root); never the grader's own uid
+        self._zygote = bool(zygote) and (self._mode == "bwrap" or os.geteuid() == 0)
+        self._child_live = False
+        self._nproc_child: int | None = None
+        self._preload = tuple(preload)
+        self._forks = 0  # exercises the current zygote has served
+        self._init_common(workdir_parent)
+
+    def _configure(self, cells, blocked, allowed) -> None:
+        """Validate and set the cells, blocked modules and allowlist of the (next) exercise."""
         if isinstance(cells, str | bytes) or not all(
             isinstance(c, tuple | list) and len(c) == 2 and all(isinstance(s, str) for s in c) for c in cells
         ):
@@ -252,8 +314,6 @@ class Sandbox:
             isinstance(b, str) and b and all(p.isidentifier() for p in b.split(".")) for b in blocked
         ):
             raise TypeError("blocked must be a sequence of dotted module names such as 'scipy.optimize'")
-        if not isinstance(limits, Limits):
-            raise TypeError("limits must be a Limits")
         self.cells = [(str(g), str(s)) for g, s in cells]
         self.blocked = tuple(dict.fromkeys([*blocked, "flowtrack_course"]))  # the tooling, blocked whole
         if allowed is not None and (isinstance(allowed, str) or not all(
@@ -262,12 +322,16 @@ class Sandbox:
             raise TypeError("allowed must be a sequence of dotted module names such as 'scipy.linalg'")
         self.allowed = None if allowed is None else tuple(dict.fromkeys(["numpy", *allowed]))
         self._packages = None if self.allowed is None else allowed_packages(self.allowed)
-        self.limits = limits
-        self.hidden_paths = tuple(str(Path(p).resolve()) for p in hidden_paths)
-        self.cell_errors: dict[str, str] = {}
-        self.stdout = ""
-        self._mode, why = choose_mode()
-        self.isolation = "bwrap" if self._mode == "bwrap" else f"fallback: {why}"
+
+    @property
+    def key(self) -> tuple:
+        """What the sandbox's process depends on (its file system view under bubblewrap, its limits):
+        exercises with equal keys can share one zygote (:class:`SandboxPool`)."""
+        pk = self._packages
+        view_blocked = tuple(sorted(b for b in self.blocked if pk is None or b.split(".")[0] in pk))
+        return (self._mode, pk, view_blocked, self.limits, self.hidden_paths, str(self._workdir_parent))
+
+    def _init_common(self, workdir_parent) -> None:
         self._cache = cache_root()
         self._workdir_parent = Path(workdir_parent) if workdir_parent is not None else self._cache / "work"
         if not self._workdir_parent.is_dir():
@@ -280,6 +344,8 @@ class Sandbox:
             )
         self._proc: subprocess.Popen | None = None
         self._reply_fd: int | None = None
+        self._req_fd: int | None = None  # where requests go: the child's stdin, or its pipe from a zygote
+        self._ctl: socket.socket | None = None  # a zygote's control socket
         self._stderr = None
         self._workdir: Path | None = None
         self._cgroup: SandboxCgroup | None = None
@@ -287,7 +353,7 @@ class Sandbox:
         self.cleanup_problems: list[str] = []
         self._next_disk_check = 0.0
         self._cpu_used = 0.0
-        self._cpu_ceiling = int(10 * limits.cpu_seconds + 60)
+        self._cpu_ceiling = int(10 * self.limits.cpu_seconds + 60)
 
     # -- context manager ---------------------------------------------------------------------------
     def __enter__(self) -> Sandbox:
@@ -317,8 +383,11 @@ class Sandbox:
                 out.append((b, loc))
         return out
 
-    def _command(self) -> tuple[list[str], dict[str, str], dict[str, Any], Path]:
-        self._uid = sandbox_uid()
+    def _command(self, launch: bool = True) -> tuple[list[str], dict[str, str], dict[str, Any], Path]:
+        """The command, environment, init message and folder of a new child (``launch``), or only the
+        init message of the next exercise in a running zygote (``launch=False``)."""
+        if launch:
+            self._uid = sandbox_uid()
         # the cached copies are marked as used at every start (see "Cache" in the module docstring)
         runtime = live_copy(python_runtime, self._uid is not None,
                         where=lambda r: Path(r.source) if r.lib_dir is not None else None)
@@ -336,16 +405,21 @@ class Sandbox:
         ft_root = live_copy(filtered_flowtrack, ft_blocked)
         with_flowtrack = self._packages is None or "flowtrack" in self._packages
         runner = live_copy(runner_dir)
-        workdir = Path(tempfile.mkdtemp(prefix="student-", dir=self._workdir_parent))
+        if not launch:
+            assert self._workdir is not None
+            workdir = self._workdir
+        else:
+            workdir = Path(tempfile.mkdtemp(prefix="student-", dir=self._workdir_parent))
         # The fallback's only writable places: workdir/home (HOME and cwd) and workdir/tmp (TMPDIR),
         # measured as one tree (see Limits.disk_bytes). Under bubblewrap they stay empty (the
         # student writes to a tmpfs inside the sandbox) and workdir/home is only bubblewrap's cwd.
         home, tmp = workdir / "home", workdir / "tmp"
-        for d in (home, tmp):
+        for d in (home, tmp) if launch else ():
             d.mkdir(mode=0o700)
             if self._uid is not None:
                 os.chown(d, self._uid, self._uid)
-        os.chmod(workdir, 0o711)
+        if launch:
+            os.chmod(workdir, 0o711)
         env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
                "MPLBACKEND": "Agg", "PYTHONDONTWRITEBYTECODE": "1", "LANG": "C.UTF-8",
                "PATH": "/usr/bin:/bin"}
@@ -354,7 +428,7 @@ class Sandbox:
         blocked_locs = self._blocked_locations(roots)
         if self._mode == "bwrap":
             inner_sites = [f"{_OPT}/site/{i}" for i in range(len(sites))]
-            cmd = bwrap_base(shutil.which("bwrap") or "bwrap")
+            cmd = bwrap_base(bwrap_path() or "bwrap")
             cmd += ["--ro-bind", runtime.source, runtime.prefix]
             for src, dst in zip(sites, inner_sites):
                 if self._packages is not None:  # only what the allowlist needs
@@ -406,6 +480,9 @@ class Sandbox:
             if not in_site and (repo / "pyproject.toml").exists():
                 deny.append(str(repo))
             cmd = [runtime.executable, "-I", "-S", "-B", str(runner / "_child.py")]
+            if self._mode == "setpriv":  # the uid switch, capabilities and no_new_privs: see setpriv_command
+                assert self._uid is not None
+                cmd = [*setpriv_command(self._uid), *cmd]
             init = {"paths": [str(ft_root)] * with_flowtrack + sites, "deny_paths": deny,
                     "strict_audit": True,
                     "write_root": str(workdir),
@@ -423,6 +500,7 @@ class Sandbox:
         lim = self.limits
         uid = self._uid
         cgroup = self._cgroup
+        via_setpriv = self._mode == "setpriv"
         cpu = math.ceil(lim.cpu_seconds) + 2  # + import of numpy and the cells
 
         def fn() -> None:
@@ -436,16 +514,45 @@ class Sandbox:
                 rl.setrlimit(rl.RLIMIT_NPROC, (nproc_outer, nproc_outer))
             if cgroup is not None:
                 cgroup.enter()
-            drop_to(uid)
+            if not via_setpriv:
+                drop_to(uid)
 
         return fn
 
     def start(self, timeout: float | None = None) -> None:
-        """Start the child and execute the cells (``run`` does this lazily); fills ``cell_errors``."""
-        if self._proc is not None:
+        """Start the child and execute the cells (``run`` does this lazily); fills ``cell_errors``.
+
+        With ``zygote=True`` the sandbox's process is started once (it imports numpy) and each
+        exercise (:meth:`prepare`, :meth:`finish`) runs in a child it forks.
+        """
+        if self._child_live:
             return
         timeout = self.limits.wall_seconds if timeout is None else float(timeout)
-        cmd, env, init, workdir = self._command()
+        if self._proc is None:
+            cmd, env, init, workdir = self._command()
+            self._launch(cmd, env, init, workdir, timeout)
+        else:
+            _, _, init, _ = self._command(launch=False)
+        init.update(op="init", nproc=self._nproc_child, blocked=list(self.blocked), cells=self.cells)
+        self._cpu_used = 0.0
+        deadline = time.monotonic() + timeout
+        try:
+            if self._zygote:
+                self._forks += 1
+                self._fork_child()
+            self._send(init, deadline)
+            reply = self._recv(deadline, self.limits.output_bytes, timeout, starting=True)
+        except _ChildGone:
+            self._kill()
+            raise
+        errors = reply.get("cell_errors") if isinstance(reply, dict) else None
+        if not isinstance(errors, dict) or reply.get("op") != "ready":
+            self._kill()
+            raise _ChildGone("the sandbox sent an invalid start-up reply")
+        self.cell_errors = {str(k): str(v)[:2000] for k, v in errors.items() if isinstance(k, str)}
+        self._child_live = True
+
+    def _launch(self, cmd: list[str], env: dict[str, str], init: dict, workdir: Path, timeout: float) -> None:
         self._workdir = workdir
         r, w = os.pipe()
         os.set_inheritable(w, True)
@@ -458,40 +565,85 @@ class Sandbox:
         else:
             nproc_outer = None
             nproc_child = user_tasks() + self.limits.processes
-        init.update(op="init", nproc=nproc_child, blocked=list(self.blocked), cells=self.cells)
-        # bubblewrap's two processes come on top of the student's
-        self._cgroup = SandboxCgroup.create(self._cgroup_memory(), self.limits.processes + 4)
+        self._nproc_child = nproc_child
+        # bubblewrap's two processes (and a zygote) come on top of the student's
+        self._cgroup = SandboxCgroup.create(self._cgroup_memory(), self.limits.processes + 5)
         self.cgroup = self._cgroup.kind if self._cgroup is not None else ""
         self._stderr = tempfile.TemporaryFile()
+        ctl_child = None
+        ctl_fd = -1
+        if self._zygote:
+            self._ctl, ctl_child = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+            ctl_fd = ctl_child.fileno()
         try:
             self._proc = subprocess.Popen(
                 [*cmd, str(w)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._stderr,
-                pass_fds=(w,), env=env, cwd=str(workdir / "home"), start_new_session=True,
-                preexec_fn=self._preexec(nproc_outer),
+                pass_fds=(w,) if ctl_child is None else (w, ctl_child.fileno()), env=env,
+                cwd=str(workdir / "home"), start_new_session=True, preexec_fn=self._preexec(nproc_outer),
             )
         finally:
             os.close(w)
+            if ctl_child is not None:
+                ctl_child.close()
         self._reply_fd = r
-        self._cpu_used = 0.0
+        self._forks = 0
+        assert self._proc.stdin is not None
+        self._req_fd = self._proc.stdin.fileno()
+        if not self._zygote:
+            return
+        if self._mode == "bwrap":
+            wipe, litter = [_SANDBOX_HOME, "/tmp"], []
+        else:
+            wipe, litter = [str(workdir / "home"), str(workdir / "tmp")], list(WORLD_WRITABLE)
         deadline = time.monotonic() + timeout
         try:
-            self._send(init, deadline)
-            reply = self._recv(deadline, self.limits.output_bytes, timeout, starting=True)
+            in_view = self._packages or ()
+            preload = [] if self.key[2] else [m for m in self._preload if m.split(".")[0] in in_view]
+            self._send({"op": "zygote", "paths": init["paths"], "nproc": nproc_child, "preload": preload,
+                        "control": ctl_fd, "wipe": wipe, "litter": litter}, deadline)
+            reply = self._recv(deadline, 1024, timeout, starting=True)
         except _ChildGone:
             self._kill()
             raise
-        errors = reply.get("cell_errors") if isinstance(reply, dict) else None
-        if not isinstance(errors, dict) or reply.get("op") != "ready":
+        if not (isinstance(reply, dict) and reply.get("op") == "zygote-ready"):
             self._kill()
             raise _ChildGone("the sandbox sent an invalid start-up reply")
-        self.cell_errors = {str(k): str(v)[:2000] for k, v in errors.items() if isinstance(k, str)}
+        os.close(self._reply_fd)  # from now on each exercise's child gets pipes of its own
+        self._reply_fd = self._req_fd = None
+
+    def _fork_child(self) -> None:
+        """Ask the zygote for a child with a fresh pair of pipes (passed over the control socket)."""
+        assert self._ctl is not None
+        self._close_child_pipes()
+        req_r, req_w = os.pipe()
+        rep_r, rep_w = os.pipe()
+        try:
+            socket.send_fds(self._ctl, [b"fork"], [req_r, rep_w])
+        except OSError:
+            for fd in (req_r, req_w, rep_r, rep_w):
+                os.close(fd)
+            raise _ChildGone(self._death_message()) from None
+        finally:
+            pass
+        os.close(req_r)
+        os.close(rep_w)
+        self._req_fd, self._reply_fd = req_w, rep_r
+
+    def _close_child_pipes(self) -> None:
+        if self._ctl is None or self._proc is None or self._req_fd == self._proc.stdin.fileno():
+            return
+        for name in ("_req_fd", "_reply_fd"):
+            fd = getattr(self, name)
+            if fd is not None:
+                os.close(fd)
+                setattr(self, name, None)
 
     # -- I/O -----------------------------------------------------------------------------------------
     def _send(self, msg: dict, deadline: float) -> None:
         data = json.dumps(msg, allow_nan=True).encode("utf-8")
         buf = memoryview(struct.pack(">I", len(data)) + data)
-        assert self._proc is not None and self._proc.stdin is not None
-        fd = self._proc.stdin.fileno()
+        assert self._proc is not None and self._req_fd is not None
+        fd = self._req_fd
         while buf:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -571,6 +723,18 @@ class Sandbox:
             if problem:
                 raise _ChildGone(f"{problem}: the disk limit cannot be checked")
             size += unlinked_bytes(descendants(self._proc.pid))
+            if self._uid is not None:  # what its uid keeps in the machine's world-writable folders
+                for entry in uid_litter(self._uid):
+                    if entry.is_dir() and not entry.is_symlink():
+                        u = tree_usage(entry, lim.disk_files)
+                        if u.problem:
+                            raise _ChildGone(f"{u.problem}: the disk limit cannot be checked")
+                        size, files = size + u.size, files + u.entries + 1
+                    else:
+                        try:
+                            size, files = size + entry.lstat().st_blocks * 512, files + 1
+                        except OSError:
+                            pass
         if files > lim.disk_files:
             raise _ChildGone(f"created more than {lim.disk_files} files (the disk limit)")
         if size > lim.disk_bytes:
@@ -641,10 +805,10 @@ class Sandbox:
         outcomes: list[Outcome] = []
         if not calls:
             return outcomes
-        if self._proc is not None and self._cpu_used > self._cpu_ceiling - self.limits.cpu_seconds - 5:
+        if self._child_live and self._cpu_used > self._cpu_ceiling - self.limits.cpu_seconds - 5:
             self._kill()  # its lifetime CPU budget is nearly spent: start afresh
         try:
-            if self._proc is None:
+            if not self._child_live:
                 self.start(timeout)
             deadline = time.monotonic() + timeout
             self._send({"op": "calls", "calls": wire, "cpu": self.limits.cpu_seconds}, deadline)
@@ -653,6 +817,8 @@ class Sandbox:
             for _ in calls:
                 reply = self._recv(deadline, budget, timeout)
                 budget -= self._budget_used
+                if isinstance(reply, dict) and reply.get("op") == "clean":  # the zygote: its child is gone
+                    raise _ChildGone("the process exited (sys.exit / os._exit)")
                 if not isinstance(reply, dict) or type(reply.get("ok")) is not bool:
                     raise _ChildGone("the sandbox sent a reply that is not plain data")
                 if isinstance(reply.get("printed"), str):
@@ -678,8 +844,53 @@ class Sandbox:
         return outcomes
 
     # -- teardown ------------------------------------------------------------------------------------
+    def finish(self) -> None:
+        """End the current exercise's child; a zygote then cleans up and waits for the next
+        (:meth:`prepare`). Without a zygote (or when anything goes wrong) the sandbox is killed."""
+        if self._zygote and self._proc is not None and not self._child_live:
+            return  # no child was started for this exercise (e.g. no calls): the zygote waits
+        if not self._zygote or not self._child_live or self._proc is None:
+            self._kill()
+            return
+        self._child_live = False
+        try:
+            deadline = time.monotonic() + max(10.0, self.limits.wall_seconds)
+            self._send({"op": "end"}, deadline)
+            self._close_child_pipes()
+            assert self._ctl is not None
+            while True:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise _ChildGone("the zygote did not clean up in time")
+                readable, _, _ = select.select([self._ctl], [], [], min(left, _DISK_POLL))
+                self._check_disk()
+                if readable:
+                    break
+            if self._ctl.recv(64) != b"clean":
+                raise _ChildGone("the zygote did not clean up")
+            if self._forks >= _ZYGOTE_FORKS:
+                raise _ChildGone("replaced after serving many exercises")
+            self._next_disk_check = 0.0
+            self._check_disk()
+        except (_ChildGone, OSError):
+            self._kill()
+
+    def prepare(self, cells: Sequence[tuple[str, str]], *, blocked: Sequence[str] = (),
+                allowed: Sequence[str] | None = None) -> None:
+        """Set the next exercise of a zygote sandbox (its :attr:`key` must stay the same)."""
+        key = self.key
+        self._configure(cells, blocked, allowed)
+        if self.key != key:
+            raise ValueError("prepare: the exercise needs another sandbox (a different key)")
+        if self._child_live:
+            self.finish()
+        self.cell_errors = {}
+        self.stdout = ""
+
     def _kill(self) -> None:
+        self._child_live = False
         p, self._proc = self._proc, None
+        stdin_fd = p.stdin.fileno() if p is not None and p.stdin is not None and not p.stdin.closed else None
         if p is not None:
             # Kill bubblewrap's children first (the pid namespace's init: its death kills the whole
             # namespace) so that bubblewrap reaps them; killing bubblewrap first leaves zombies for
@@ -721,9 +932,24 @@ class Sandbox:
             self._cgroup = None
         if self._uid is not None and p is not None:
             kill_uid(self._uid)
+            if self._mode != "bwrap":  # no mount namespace: remove what it left in /tmp, /dev/shm, ...
+                for entry in uid_litter(self._uid):
+                    problems = remove_tree(entry) if entry.is_dir() and not entry.is_symlink() else []
+                    if not entry.is_dir() or entry.is_symlink():
+                        try:
+                            entry.unlink()
+                        except OSError as exc:
+                            problems = [f"{entry}: {exc.strerror}"]
+                    self.cleanup_problems += problems
         if self._reply_fd is not None:
             os.close(self._reply_fd)
             self._reply_fd = None
+        if self._ctl is not None:
+            if self._req_fd is not None and self._req_fd != stdin_fd:
+                os.close(self._req_fd)
+            self._ctl.close()
+            self._ctl = None
+        self._req_fd = None
         if self._stderr is not None:
             self._stderr.close()
             self._stderr = None
@@ -738,3 +964,75 @@ class Sandbox:
             self._workdir = None
 
 
+
+
+class _Lease:
+    """One exercise in a pooled zygote sandbox: the ``Sandbox`` interface ``run_exercise`` uses."""
+
+    def __init__(self, box: Sandbox) -> None:
+        self._box = box
+
+    def __enter__(self) -> _Lease:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._box.finish()
+
+    def run(self, calls: Sequence[Call], timeout: float | None = None) -> list[Outcome]:
+        return self._box.run(calls, timeout)
+
+    @property
+    def isolation(self) -> str:
+        return self._box.isolation
+
+    @property
+    def cell_errors(self) -> dict[str, str]:
+        return self._box.cell_errors
+
+    @property
+    def stdout(self) -> str:
+        return self._box.stdout
+
+
+class SandboxPool:
+    """Sandboxes of one student, reused across the student's exercises (a zygote per key).
+
+    Called like :class:`Sandbox` (``pool(cells, blocked=..., allowed=..., limits=...)``), it returns
+    a context manager with ``run``, ``isolation``, ``cell_errors`` and ``stdout``. Exercises whose
+    sandboxes would be the same (:attr:`Sandbox.key`: the same file system view, limits and hidden
+    paths) share one sandboxed process that imported numpy once; each exercise runs in a child it
+    forks, with that exercise's own import guard and audit hook, and between two exercises the
+    zygote kills every other process of the sandbox and empties its writable folders. A child that
+    crashes, times out or exceeds a limit takes the whole sandbox down (the next exercise starts a
+    new one), exactly as without the pool. Never shared between students: :meth:`close` kills all.
+    Where a zygote cannot be used (the fallback as an ordinary user) every exercise gets a fresh
+    sandbox.
+    """
+
+    def __init__(self, preload: Sequence[str] = ()) -> None:
+        self._boxes: dict[tuple, Sandbox] = {}
+        self.preload = tuple(preload)
+
+    def __call__(self, cells: Sequence[tuple[str, str]], **kwargs: Any) -> Any:
+        box = Sandbox(cells, zygote=True, preload=self.preload, **kwargs)
+        if not box._zygote:
+            return box
+        old = self._boxes.get(box.key)
+        if old is None:
+            self._boxes[box.key] = box
+            return _Lease(box)
+        box.close()
+        old.prepare(cells, blocked=kwargs.get("blocked", ()), allowed=kwargs.get("allowed"))
+        return _Lease(old)
+
+    def __enter__(self) -> SandboxPool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Kill every sandbox of the pool."""
+        boxes, self._boxes = list(self._boxes.values()), {}
+        for box in boxes:
+            box.close()
