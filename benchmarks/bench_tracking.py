@@ -25,6 +25,7 @@ constant velocity (both flow-aided).
 Usage::
 
     .venv/bin/python benchmarks/bench_tracking.py [--quick] [--check] [--section {all,speed,flow}]
+        [--flow-image H W]
 
 Prints its tables and, unless ``--quick``, writes them to ``benchmarks/results/tracking.md`` and
 ``benchmarks/results/tracking_flow.md``. ``--check`` exits with status 1 when a target is missed.
@@ -152,6 +153,9 @@ def main(argv=None) -> int:
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
     ap.add_argument("--section", choices=("all", "speed", "flow"), default="all",
                     help="the step-speed section, the scene-flow section (issue 15) or both")
+    ap.add_argument("--flow-image", type=int, nargs=2, default=FLOW_IMAGE, metavar=("H", "W"),
+                    help="image size of the scene-flow section's scenes (default %(default)s; the demo's "
+                         "is 240 320)")
     args = ap.parse_args(argv)
     ok = True
     if args.section in ("all", "speed"):
@@ -323,7 +327,7 @@ def flow_section(args) -> bool:
     ok_ids8, ok_mota8, ratios8 = True, True, []
     for scenario in FLOW_SCENARIOS:
         for seed in seeds:
-            d = scene_detections(scenario, seed, n_frames)
+            d = scene_detections(scenario, seed, n_frames, tuple(args.flow_image))
             res = _ablation(d, max_misses=FLOW_MAX_MISSES)
             po, fa = res["position_only"], res["flow_aided"]
             dflt = _ablation(d)  # the demo's max_misses
@@ -350,7 +354,7 @@ def flow_section(args) -> bool:
     ok_pred = mean_ratio <= 0.8
     turn_rows, turn_ratios = [], []
     for seed in seeds:
-        d = scene_detections("turning", seed, n_frames)
+        d = scene_detections("turning", seed, n_frames, tuple(args.flow_image))
         obj1 = [{k: v for k, v in f.items() if k == 1} for f in d["truth"]]  # the turning object
         cv = _ablation(d, truth=obj1, max_misses=FLOW_MAX_MISSES)
         tr = _ablation(d, {**TURN_OPTIONS, "turn_axis": d["up"]}, truth=obj1, max_misses=FLOW_MAX_MISSES)
@@ -366,7 +370,7 @@ def flow_section(args) -> bool:
         "# Scene flow in the tracker (issue 15)",
         "",
         "The demo's pipeline (`flowtrack_course.demo.run_demo`) on synthetic scenes "
-        f"({FLOW_IMAGE[0]}×{FLOW_IMAGE[1]} px, {n_frames} frames, "
+        f"({args.flow_image[0]}×{args.flow_image[1]} px, {n_frames} frames, "
         f"`DemoConfig()` defaults, the demo's depth noise, except `max_misses={FLOW_MAX_MISSES}`): the dense "
         "variational RGB-D flow of each frame pair at the cloud's points "
         "(`flowtrack.pipeline.rgbd_cloud_flow`), "
