@@ -10,6 +10,7 @@ named, and a compile error becomes feedback with the compiler's message.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -310,11 +311,16 @@ def test_mathics_harness_runs_the_public_tests_locally(tmp_path):
 
 @pytest.mark.parametrize("toolchain", ["octave"], indirect=True)
 def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
-    from flowtrack_course.grading.gradescope import SETUP_SH, run_submission
+    from flowtrack_course.grading.gradescope import SETUP_SH, grader_requirements, run_submission
 
-    for pkg in ("g++", "libeigen3-dev", "octave", "openjdk-17-jdk-headless", "libgoogle-gson-java"):
-        assert pkg in SETUP_SH  # the bundle's image gets the toolchains from Debian
-    assert "[grading,ports]" in SETUP_SH  # and Mathics3
+    apt = " ".join(ln.rstrip("\\") for ln in SETUP_SH.splitlines() if not ln.lstrip().startswith("#"))
+    for pkg in ("g++", "libeigen3-dev", "nlohmann-json3-dev", "octave", "openjdk-17-jdk-headless",
+                "libgoogle-gson-java", "libejml-java"):
+        assert f" {pkg} " in f" {apt} "  # the bundle's image gets the toolchains from Debian
+    # and Mathics3 through the grader requirements the bundle installs (flowtrack itself --no-deps)
+    assert "pip install -q -r /autograder/source/requirements-grader.txt" in SETUP_SH
+    reqs = [re.split(r"[<>=!~;\[ ]", r, maxsplit=1)[0].lower() for r in grader_requirements(REPO).split("\n")]
+    assert "mathics3" in reqs
     ex = _ex("octave", "cv_model")
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "cv_model.m").write_text((SOURCES / ex.notebook).read_text())  # a flat upload
