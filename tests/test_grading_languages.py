@@ -328,3 +328,29 @@ def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
     mine = [t for t in data["tests"] if t["name"].startswith(ex.id)]
     assert len(mine) == 2 and all(t["status"] == "passed" for t in mine), mine
     assert not any(t["name"].startswith("cpp_") for t in data["tests"])
+
+
+@pytest.mark.parametrize("toolchain", ["octave"], indirect=True)
+def test_language_answers_score_the_same_in_the_pool_and_fresh(toolchain, tmp_path):
+    # grade_student runs the exercises in a SandboxPool by default: a language answer (a driver
+    # that starts a compiler or interpreter inside the sandbox) must score as in a fresh sandbox,
+    # right and wrong answers alike, beside a notebook exercise sharing the pool.
+    import shutil
+
+    from flowtrack_course.grading.exercises import get_exercise
+    from flowtrack_course.grading.grade import grade_student
+
+    right, wrong = _ex("octave", "cv_model"), _ex("octave", "projection_jacobian")
+    nb = get_exercise("ex05_cv_model")
+    sub = tmp_path / "ana"
+    _write(sub, right, (SOURCES / right.notebook).read_text())
+    _write(sub, wrong, strip_solutions((SOURCES / wrong.notebook).read_text(), "octave"))
+    shutil.copy(REPO / "exercises" / nb.notebook, sub / nb.notebook)
+    scores = {}
+    for reuse in (True, False):
+        s = grade_student("ana", sub, [right, nb, wrong], tmp_path / f"out{reuse}", force=True,
+                          reuse_sandboxes=reuse)
+        scores[reuse] = s["exercises"]
+    assert scores[True] == scores[False]
+    assert scores[True][right.id] == right.max_score and scores[True][nb.id] == nb.max_score
+    assert scores[True][wrong.id] == 0.0
