@@ -327,7 +327,10 @@ def compare(
             else ("a nonzero value where zero is expected")
         )
         # the absolute tolerance may be scaled by the expected values: only the relative one is shown
-        safe = f"values differ at {k} of {n} entries; the worst, at entry {_index(idx)}: {rel_text} (rtol={rtol:g})"
+        safe = (
+            f"values differ at {k} of {n} entries; the worst, at entry {_index(idx)}: {rel_text} "
+            f"(rtol={rtol:g})"
+        )
     if n <= 24:
         public += f"\n    expected {_fmt_array(expected)}\n    got      {_fmt_array(got)}"
     return Diff(False, public, safe, mistakes, checked)
