@@ -10,6 +10,7 @@ named, and a compile error becomes feedback with the compiler's message.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -310,11 +311,16 @@ def test_mathics_harness_runs_the_public_tests_locally(tmp_path):
 
 @pytest.mark.parametrize("toolchain", ["octave"], indirect=True)
 def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
-    from flowtrack_course.grading.gradescope import SETUP_SH, run_submission
+    from flowtrack_course.grading.gradescope import SETUP_SH, grader_requirements, run_submission
 
-    for pkg in ("g++", "libeigen3-dev", "octave", "openjdk-17-jdk-headless", "libgoogle-gson-java"):
-        assert pkg in SETUP_SH  # the bundle's image gets the toolchains from Debian
-    assert "[grading,ports]" in SETUP_SH  # and Mathics3
+    apt = " ".join(ln.rstrip("\\") for ln in SETUP_SH.splitlines() if not ln.lstrip().startswith("#"))
+    for pkg in ("g++", "libeigen3-dev", "nlohmann-json3-dev", "octave", "openjdk-17-jdk-headless",
+                "libgoogle-gson-java", "libejml-java"):
+        assert f" {pkg} " in f" {apt} "  # the bundle's image gets the toolchains from Debian
+    # and Mathics3 through the grader requirements the bundle installs (flowtrack itself --no-deps)
+    assert "pip install -q -r /autograder/source/requirements-grader.txt" in SETUP_SH
+    reqs = [re.split(r"[<>=!~;\[ ]", r, maxsplit=1)[0].lower() for r in grader_requirements(REPO).split("\n")]
+    assert "mathics3" in reqs
     ex = _ex("octave", "cv_model")
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "cv_model.m").write_text((SOURCES / ex.notebook).read_text())  # a flat upload
@@ -322,3 +328,29 @@ def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
     mine = [t for t in data["tests"] if t["name"].startswith(ex.id)]
     assert len(mine) == 2 and all(t["status"] == "passed" for t in mine), mine
     assert not any(t["name"].startswith("cpp_") for t in data["tests"])
+
+
+@pytest.mark.parametrize("toolchain", ["octave"], indirect=True)
+def test_language_answers_score_the_same_in_the_pool_and_fresh(toolchain, tmp_path):
+    # grade_student runs the exercises in a SandboxPool by default: a language answer (a driver
+    # that starts a compiler or interpreter inside the sandbox) must score as in a fresh sandbox,
+    # right and wrong answers alike, beside a notebook exercise sharing the pool.
+    import shutil
+
+    from flowtrack_course.grading.exercises import get_exercise
+    from flowtrack_course.grading.grade import grade_student
+
+    right, wrong = _ex("octave", "cv_model"), _ex("octave", "projection_jacobian")
+    nb = get_exercise("ex05_cv_model")
+    sub = tmp_path / "ana"
+    _write(sub, right, (SOURCES / right.notebook).read_text())
+    _write(sub, wrong, strip_solutions((SOURCES / wrong.notebook).read_text(), "octave"))
+    shutil.copy(REPO / "exercises" / nb.notebook, sub / nb.notebook)
+    scores = {}
+    for reuse in (True, False):
+        s = grade_student("ana", sub, [right, nb, wrong], tmp_path / f"out{reuse}", force=True,
+                          reuse_sandboxes=reuse)
+        scores[reuse] = s["exercises"]
+    assert scores[True] == scores[False]
+    assert scores[True][right.id] == right.max_score and scores[True][nb.id] == nb.max_score
+    assert scores[True][wrong.id] == 0.0

@@ -327,7 +327,10 @@ def compare(
             else ("a nonzero value where zero is expected")
         )
         # the absolute tolerance may be scaled by the expected values: only the relative one is shown
-        safe = f"values differ at {k} of {n} entries; the worst, at entry {_index(idx)}: {rel_text} (rtol={rtol:g})"
+        safe = (
+            f"values differ at {k} of {n} entries; the worst, at entry {_index(idx)}: {rel_text} "
+            f"(rtol={rtol:g})"
+        )
     if n <= 24:
         public += f"\n    expected {_fmt_array(expected)}\n    got      {_fmt_array(got)}"
     return Diff(False, public, safe, mistakes, checked)
@@ -362,12 +365,43 @@ _NO_FUNCTION = re.compile(
 )
 
 
+def _one_line(text: str) -> str:
+    """``text`` on one line: newlines, other control characters and lone surrogates escaped."""
+    out = []
+    for ch in str(text):
+        if ch == "\n":
+            out.append("\\n")
+        elif ch == "\\" or ch.isprintable() or ch == " ":
+            out.append(ch)
+        else:  # control characters, lone surrogates (unwritable as UTF-8), other unprintables
+            out.append(ch.encode("unicode_escape").decode("ascii"))
+    return "".join(out)
+
+
 def _cause(text: str) -> str:
-    """The last line of a traceback (``ImportError: ...``), with where it was raised."""
-    lines = [ln.strip() for ln in str(text).splitlines() if ln.strip()]
-    last = lines[-1] if lines else str(text)
-    where = _LOCATION.findall(str(text))
-    return last[:300] + (f" (at {where[-1][0]} line {where[-1][1]})" if where else "")
+    """The exception of a traceback (``ImportError: ...``) on one line, with where it was raised.
+
+    The exception's whole message is kept (a multi-line message is not cut to its last line) and
+    escaped onto one line: its newlines as ``\\n``, a lone surrogate as ``\\ud800``.
+
+    >>> _cause('Traceback (most recent call last):\\n  File "<cell f>", line 2, in <module>\\n'
+    ...        'ValueError: \\ud800 bad\\n<!--')
+    'ValueError: \\\\ud800 bad\\\\n<!-- (at <cell f> line 2)'
+    """
+    text = str(text)
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    # the exception starts after the last "  File ..." line and its indented source lines
+    start = 0
+    for i, ln in enumerate(lines):
+        if ln.startswith('  File "'):
+            start = i + 1
+    while start and start < len(lines) and lines[start].startswith("    "):
+        start += 1
+    if start == 0 and lines and lines[0].startswith("Traceback"):
+        start = 1
+    exc = "\n".join(lines[start:]).strip() or text.strip()
+    where = _LOCATION.findall(text)
+    return _one_line(exc)[:300] + (f" (at {where[-1][0]} line {where[-1][1]})" if where else "")
 
 
 def explain_cascade(outcomes: Sequence[Outcome], cell_errors: dict[str, str]) -> list[Outcome]:
