@@ -34,6 +34,7 @@ Examples
 from __future__ import annotations
 
 import argparse
+import functools
 import io
 import multiprocessing
 import os
@@ -55,6 +56,7 @@ __all__ = [
     "API_PACKAGES",
     "API_PAGE",
     "BookResult",
+    "api_members",
     "api_modules",
     "build_book",
     "course_root",
@@ -293,12 +295,77 @@ def _api_page() -> str:
         "built on it (see the architecture notes, `docs/ARCHITECTURE.md` in the repository).",
         "",
     ]
+    documented = {mod: api_members(mod) for mod in _public_modules()}
     for package, title, blurb in API_PACKAGES:
         lines += [f"## {title}", "", blurb, ""]
         for mod in api_modules(package):
-            lines += [f"### `{mod}`", "", "```{eval-rst}", f".. automodule:: {mod}", "   :members:",
-                      "   :show-inheritance:", "```", ""]
+            members = documented[mod]
+            lines += [f"### `{mod}`", "", "```{eval-rst}", f".. automodule:: {mod}"]
+            if members is None:  # no __all__: autodoc's own rule (what the module defines)
+                lines += ["   :members:"]
+            elif members:
+                lines += ["   :members: " + ", ".join(members)]
+            lines += ["   :show-inheritance:", "```", ""]
     return "\n".join(lines)
+
+
+@functools.lru_cache(maxsize=1)
+def _public_modules() -> tuple[str, ...]:
+    return tuple(mod for package, _, _ in API_PACKAGES for mod in api_modules(package))
+
+
+def api_members(mod: str) -> list[str] | None:
+    """The names of ``mod.__all__`` the API reference documents under ``mod`` (``None`` when ``mod``
+    has no ``__all__``: autodoc then documents what the module itself defines).
+
+    Every object is documented once, at its canonical place, so that a cross-reference has one
+    target: a class or function under the public module that defines it (``obj.__module__``), a
+    name re-exported from a private module (or a constant) under the deepest public module
+    exporting that same object (``flowtrack.synth.shapes.Box``, not ``flowtrack.synth.Box``).
+    Sub-modules listed in ``__all__`` get their own section and are left out here.
+
+    Examples
+    --------
+    >>> "BatchKalmanFilter" in api_members("flowtrack.batch_kalman")
+    True
+    >>> "BatchKalmanFilter" in api_members("flowtrack.kalman")  # re-exported: documented once
+    False
+    """
+    import importlib
+    import inspect
+
+    module = importlib.import_module(mod)
+    names = getattr(module, "__all__", None)
+    if names is None:
+        return None
+    public = _public_modules()
+    out = []
+    for name in names:
+        obj = getattr(module, name, None)
+        if inspect.ismodule(obj):
+            continue
+        if _canonical_module(name, obj, mod, public) == mod:
+            out.append(name)
+    return out
+
+
+def _canonical_module(name: str, obj, mod: str, public: tuple[str, ...]) -> str:
+    import importlib
+
+    home = getattr(obj, "__module__", None) if (callable(obj) or isinstance(obj, type)) else None
+    exporters = []
+    for other in public:
+        m = importlib.import_module(other)
+        if name in (getattr(m, "__all__", None) or ()) and getattr(m, name, None) is obj:
+            exporters.append(other)
+    if home in public:
+        defining = importlib.import_module(home)
+        if home in exporters or (getattr(defining, "__all__", None) is None
+                                 and getattr(defining, name, None) is obj):
+            return home
+    if not exporters:
+        return mod
+    return max(exporters, key=lambda m: (m.count("."), m))
 
 
 def _mathjax_dir() -> Path:
