@@ -321,8 +321,10 @@ def api_members(mod: str) -> list[str] | None:
     Every object is documented once, at its canonical place, so that a cross-reference has one
     target: a class or function under the public module that defines it (``obj.__module__``), a
     name re-exported from a private module (or a constant) under the deepest public module
-    exporting that same object (``flowtrack.synth.shapes.Box``, not ``flowtrack.synth.Box``).
-    Sub-modules listed in ``__all__`` get their own section and are left out here.
+    exporting that same object (``flowtrack.synth.shapes.Box``, not ``flowtrack.synth.Box``). A lazy
+    alias (``flowtrack_course.demo.detect_objects``) is documented under its own name where it is
+    defined (``flowtrack.pipeline.detections_from_clusters``). Sub-modules listed in ``__all__`` get their
+    own section and are left out here.
 
     Examples
     --------
@@ -344,28 +346,33 @@ def api_members(mod: str) -> list[str] | None:
         obj = getattr(module, name, None)
         if inspect.ismodule(obj):
             continue
-        if _canonical_module(name, obj, mod, public) == mod:
+        if _canonical_module(name, obj, mod, public) == (mod, name):
             out.append(name)
     return out
 
 
-def _canonical_module(name: str, obj, mod: str, public: tuple[str, ...]) -> str:
+def _canonical_module(name: str, obj, mod: str, public: tuple[str, ...]) -> tuple[str, str] | None:
+    """``(module, name)`` under which the API reference documents ``obj`` (exported by ``mod`` as
+    ``name``), or ``None`` when autodoc cannot reach it (a lazy ``__getattr__`` alias of an object
+    defined in a private module)."""
     import importlib
+    import inspect
 
-    home = getattr(obj, "__module__", None) if (callable(obj) or isinstance(obj, type)) else None
+    if inspect.isfunction(obj) or inspect.isclass(obj):
+        home, own = getattr(obj, "__module__", None), getattr(obj, "__name__", name)
+        if home in public:
+            defining = importlib.import_module(home)
+            exported = getattr(defining, "__all__", None)
+            if vars(defining).get(own) is obj and (exported is None or own in exported):
+                return home, own
     exporters = []
     for other in public:
         m = importlib.import_module(other)
-        if name in (getattr(m, "__all__", None) or ()) and getattr(m, name, None) is obj:
+        if name in (getattr(m, "__all__", None) or ()) and vars(m).get(name) is obj:
             exporters.append(other)
-    if home in public:
-        defining = importlib.import_module(home)
-        if home in exporters or (getattr(defining, "__all__", None) is None
-                                 and getattr(defining, name, None) is obj):
-            return home
     if not exporters:
-        return mod
-    return max(exporters, key=lambda m: (m.count("."), m))
+        return (mod, name) if name in vars(importlib.import_module(mod)) else None
+    return max(exporters, key=lambda m: (m.count("."), m)), name
 
 
 def _mathjax_dir() -> Path:
