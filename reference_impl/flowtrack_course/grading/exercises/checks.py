@@ -149,6 +149,14 @@ def _describe(x: Any) -> str:
 
 
 def call_label(function: str, args: Sequence[Any], kwargs: Mapping[str, Any] | None = None) -> str:
+    """How a call is shown in feedback: ``function(arg, ..., key=value)`` with every argument
+    described briefly (arrays by shape and dtype).
+
+    Examples
+    --------
+    >>> call_label("f", (1,), {"k": 2}).startswith("f(")
+    True
+    """
     parts = [_describe(a) for a in args] + [f"{k}={_describe(v)}" for k, v in (kwargs or {}).items()]
     return f"{function}({', '.join(parts)})"
 
