@@ -150,7 +150,7 @@ def _describe(x: Any) -> str:
 
 def call_label(function: str, args: Sequence[Any], kwargs: Mapping[str, Any] | None = None) -> str:
     """How a call is shown in feedback: ``function(arg, ..., key=value)`` with every argument
-    described briefly (arrays by shape and dtype).
+    described briefly (arrays by shape, floats to 4 digits, lists by length).
 
     Examples
     --------
