@@ -193,7 +193,8 @@ def pinhole(fx: float, fy: float, cx: float = 0.0, cy: float = 0.0):
 
 
 def points_in_front(rng: np.random.Generator, n: int) -> np.ndarray:
-    """``n`` random points, shape (n, 3), with x, y in [-1, 1] and depth z in [0.5, 4] (in front of a camera)."""
+    """``n`` random points, shape (n, 3), with x, y in [-1, 1] and depth z in [0.5, 4] (in front of
+    a camera)."""
     X = rng.uniform(-1.0, 1.0, size=(n, 3))
     X[:, 2] = rng.uniform(0.5, 4.0, size=n)
     return X
