@@ -15,8 +15,8 @@ over the frame interval, :math:`s_p = v_p\,\Delta t` (metres; the returned veloc
 :math:`v = s/\Delta t`). At :math:`t + \Delta t` the point is :math:`X_p + s_p` and its image is
 :math:`\pi(X_p + s_p) = x_p + u_p`, so the optical flow is :math:`u_p = \pi(X_p + s_p) - \pi(X_p)`.
 
-The energy
-----------
+The robust RGB-D energy
+-----------------------
 With :math:`I_0, I_1` the grey images and :math:`D_1` the depth map at :math:`t + \Delta t`,
 
 .. math::

@@ -1,7 +1,7 @@
 r"""Variational scene flow on the pixel grid (syllabus section 3, Problem 2).
 
-The energy
-----------
+The quadratic energy on the grid
+--------------------------------
 Let :math:`X_t, X_{t+1} : \Omega \to \mathbb{R}^3` be the point maps of two RGB-D frames on an
 :math:`H \times W` pixel grid (shape ``(H, W, 3)``), :math:`m_p \in \{0, 1\}` a data mask
 (1 where both depths are valid) and :math:`\mathcal{E}` the 4-neighbour edges of the grid. The

@@ -34,6 +34,7 @@ Examples
 from __future__ import annotations
 
 import argparse
+import functools
 import io
 import multiprocessing
 import os
@@ -55,6 +56,7 @@ __all__ = [
     "API_PACKAGES",
     "API_PAGE",
     "BookResult",
+    "api_members",
     "api_modules",
     "build_book",
     "course_root",
@@ -293,12 +295,84 @@ def _api_page() -> str:
         "built on it (see the architecture notes, `docs/ARCHITECTURE.md` in the repository).",
         "",
     ]
+    documented = {mod: api_members(mod) for mod in _public_modules()}
     for package, title, blurb in API_PACKAGES:
         lines += [f"## {title}", "", blurb, ""]
         for mod in api_modules(package):
-            lines += [f"### `{mod}`", "", "```{eval-rst}", f".. automodule:: {mod}", "   :members:",
-                      "   :show-inheritance:", "```", ""]
+            members = documented[mod]
+            lines += [f"### `{mod}`", "", "```{eval-rst}", f".. automodule:: {mod}"]
+            if members is None:  # no __all__: autodoc's own rule (what the module defines)
+                lines += ["   :members:"]
+            elif members:
+                lines += ["   :members: " + ", ".join(members)]
+            lines += ["   :show-inheritance:", "```", ""]
     return "\n".join(lines)
+
+
+@functools.lru_cache(maxsize=1)
+def _public_modules() -> tuple[str, ...]:
+    return tuple(mod for package, _, _ in API_PACKAGES for mod in api_modules(package))
+
+
+def api_members(mod: str) -> list[str] | None:
+    """The names of ``mod.__all__`` the API reference documents under ``mod`` (``None`` when ``mod``
+    has no ``__all__``: autodoc then documents what the module itself defines).
+
+    Every object is documented once, at its canonical place, so that a cross-reference has one
+    target: a class or function under the public module that defines it (``obj.__module__``), a
+    name re-exported from a private module (or a constant) under the deepest public module
+    exporting that same object (``flowtrack.synth.shapes.Box``, not ``flowtrack.synth.Box``). A lazy
+    alias (``flowtrack_course.demo.detect_objects``) is documented under its own name where it is
+    defined (``flowtrack.pipeline.detections_from_clusters``). Sub-modules listed in ``__all__`` get their
+    own section and are left out here.
+
+    Examples
+    --------
+    >>> "BatchKalmanFilter" in api_members("flowtrack.batch_kalman")
+    True
+    >>> "BatchKalmanFilter" in api_members("flowtrack.kalman")  # re-exported: documented once
+    False
+    """
+    import importlib
+    import inspect
+
+    module = importlib.import_module(mod)
+    names = getattr(module, "__all__", None)
+    if names is None:
+        return None
+    public = _public_modules()
+    out = []
+    for name in names:
+        obj = getattr(module, name, None)
+        if inspect.ismodule(obj):
+            continue
+        if _canonical_module(name, obj, mod, public) == (mod, name):
+            out.append(name)
+    return out
+
+
+def _canonical_module(name: str, obj, mod: str, public: tuple[str, ...]) -> tuple[str, str] | None:
+    """``(module, name)`` under which the API reference documents ``obj`` (exported by ``mod`` as
+    ``name``), or ``None`` when autodoc cannot reach it (a lazy ``__getattr__`` alias of an object
+    defined in a private module)."""
+    import importlib
+    import inspect
+
+    if inspect.isfunction(obj) or inspect.isclass(obj):
+        home, own = getattr(obj, "__module__", None), getattr(obj, "__name__", name)
+        if home in public:
+            defining = importlib.import_module(home)
+            exported = getattr(defining, "__all__", None)
+            if vars(defining).get(own) is obj and (exported is None or own in exported):
+                return home, own
+    exporters = []
+    for other in public:
+        m = importlib.import_module(other)
+        if name in (getattr(m, "__all__", None) or ()) and vars(m).get(name) is obj:
+            exporters.append(other)
+    if not exporters:
+        return (mod, name) if name in vars(importlib.import_module(mod)) else None
+    return max(exporters, key=lambda m: (m.count("."), m)), name
 
 
 def _mathjax_dir() -> Path:

@@ -41,6 +41,15 @@ _CACHE_ENTRY = re.compile(r"[0-9a-f]{16,64}|\.build-[^/]+|\.trash-[^/]+")
 
 
 def cache_root() -> Path:
+    """The sandbox cache folder ``flowtrack-sandbox-<uid>`` (created, mode 0755, with its
+    sub-folders) under ``$FLOWTRACK_SANDBOX_CACHE``, else the temporary directory (a shared one
+    when root's own is not reachable by the sandbox's uid).
+
+    Raises
+    ------
+    RuntimeError
+        The folder exists but is not a private directory of this user.
+    """
     base = Path(os.environ.get("FLOWTRACK_SANDBOX_CACHE") or tempfile.gettempdir())
     explicit = bool(os.environ.get("FLOWTRACK_SANDBOX_CACHE"))
     if os.geteuid() == 0 and not explicit and not world_readable(base, read=False):
@@ -204,6 +213,7 @@ def prune_stale(kind_dir: Path, keep: str, max_age: float = PRUNE_AFTER) -> list
 
 
 def link_or_copy(src: Path, dst: Path) -> None:
+    """Hard-link ``src`` to ``dst``, else copy it (mode 0755 if ``src`` is executable, else 0644)."""
     try:
         os.link(src, dst)
     except OSError:

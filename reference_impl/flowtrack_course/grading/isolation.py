@@ -64,6 +64,7 @@ def sandbox_uid() -> int | None:
 
 
 def drop_to(uid: int | None) -> None:
+    """Drop this process's groups, gid and uid to ``uid`` for good (nothing when ``None``)."""
     if uid is None:
         return
     os.setgroups([])
@@ -77,6 +78,9 @@ JVM_CONFIG = ("/etc/java-17-openjdk", "/etc/java-21-openjdk")
 
 
 def bwrap_base(bwrap: str) -> list[str]:
+    """The bubblewrap command line every sandboxed child starts with: all namespaces
+    unshared, uid/gid 65534, ``/usr`` and the library folders read-only, the loader and JDK
+    configuration, a fresh ``/proc`` and ``/dev``."""
     args = [bwrap, "--unshare-all", "--unshare-user", "--die-with-parent", "--new-session",
             "--uid", "65534", "--gid", "65534", "--ro-bind", "/usr", "/usr"]
     for top in ("/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32"):
@@ -228,6 +232,7 @@ def uid_litter(uid: int, roots: tuple[str, ...] = WORLD_WRITABLE) -> list[Path]:
 
 
 def user_tasks() -> int:
+    """The number of threads (tasks under ``/proc``) this process's uid is running."""
     uid = os.getuid()
     n = 0
     for p in Path("/proc").glob("[0-9]*"):
@@ -241,6 +246,13 @@ def user_tasks() -> int:
 
 
 def signal_name(sig: int) -> str:
+    """The name of signal ``sig`` (``"SIGKILL"``), or ``"signal N"`` when it has none.
+
+    Examples
+    --------
+    >>> signal_name(9)
+    'SIGKILL'
+    """
     try:
         return signal.Signals(sig).name
     except ValueError:

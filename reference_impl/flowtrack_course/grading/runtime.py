@@ -83,6 +83,7 @@ def python_runtime(need_world_readable: bool) -> Runtime:
 
 
 def site_dirs() -> list[str]:
+    """The interpreter's existing site-packages folders, in ``site`` order, without duplicates."""
     import site
 
     dirs = []
@@ -167,6 +168,8 @@ def filtered_flowtrack(blocked: tuple[str, ...]) -> Path:
 
 
 def stub_dir(name: str) -> Path:
+    """A cached folder holding a stub package ``name`` (its ``__init__.py``), built once
+    atomically under the sandbox cache; the stub stands in for a package the sandbox withholds."""
     key = hashlib.sha256(name.encode()).hexdigest()[:16]
 
     def build(tmp: Path) -> None:

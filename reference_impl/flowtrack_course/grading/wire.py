@@ -29,6 +29,14 @@ __all__ = ["NotPlainData", "as_child_receives", "from_wire", "is_plain", "plain_
 
 
 def to_wire(x: Any, depth: int = 0) -> Any:
+    """``x`` converted to plain data that crosses the boundary to the sandboxed child (arrays
+    tagged with their dtype and shape).
+
+    Raises
+    ------
+    TypeError
+        ``x`` is nested more than 32 deep or holds a type that cannot cross.
+    """
     if depth > 32:
         raise TypeError("Call arguments are nested too deeply")
     if x is None or isinstance(x, bool | int | float | str):
@@ -55,6 +63,14 @@ def to_wire(x: Any, depth: int = 0) -> Any:
 
 
 def is_plain(x: Any, depth: int = 0) -> bool:
+    """True when ``x`` is plain data: ``None``, bool, int, float, str, and lists and
+    str-keyed dicts of them (nested at most 64 deep).
+
+    Examples
+    --------
+    >>> is_plain({"a": [1, 2.0, None]}), is_plain((1, 2))
+    (True, False)
+    """
     if depth > 64:
         return False
     t = type(x)

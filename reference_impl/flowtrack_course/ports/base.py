@@ -44,7 +44,11 @@ def __getattr__(name: str) -> Path:
 
 
 class ToolchainMissing(RuntimeError):
-    """A compiler/interpreter a port needs is not installed (never a silent skip)."""
+    """A compiler/interpreter a port needs is not installed (never a silent skip).
+
+    The port harnesses' error; the grader has its own,
+    :class:`flowtrack_course.grading.languages.toolchains.ToolchainMissing`.
+    """
 
 
 @dataclass(frozen=True)

@@ -171,7 +171,7 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
 
     Raises
     ------
-    ToolchainMissing
+    flowtrack_course.ports.base.ToolchainMissing
         bdsim is not installed (``pip install -e ".[ports]"``).
     """
     if importlib.util.find_spec("bdsim") is None:

@@ -71,7 +71,8 @@ _HEADERS = {
 
 
 def check_toolchain() -> None:
-    """Raise :class:`ToolchainMissing` naming the Debian packages to install, if any is missing."""
+    """Raise :class:`~flowtrack_course.ports.base.ToolchainMissing` naming the Debian packages to
+    install, if any is missing."""
     missing = [pkg for exe, pkg in _EXECUTABLES.items() if shutil.which(exe) is None]
     missing += [pkg for pattern, pkg in _HEADERS.items() if not glob.glob(pattern)]
     if missing:
@@ -110,7 +111,7 @@ def build(build_dir: Path | str, src_dir: Path | str | None = None) -> Path:
 
     Raises
     ------
-    ToolchainMissing
+    flowtrack_course.ports.base.ToolchainMissing
         A compiler, CMake or a library is not installed.
     RuntimeError
         Configuration or compilation failed (the message holds the end of the compiler output).

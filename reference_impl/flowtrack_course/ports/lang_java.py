@@ -112,7 +112,7 @@ def build(build_dir: Path, tests: bool = False) -> tuple[Path, list[str]]:
 
     Raises
     ------
-    ToolchainMissing
+    flowtrack_course.ports.base.ToolchainMissing
         ``javac``/``java`` or one of the Debian jars is not installed.
     """
     javac = _tool("javac")
@@ -145,7 +145,7 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
 
     Raises
     ------
-    ToolchainMissing
+    flowtrack_course.ports.base.ToolchainMissing
         A JDK tool, a Debian jar or the OpenCV JNI library is missing.
     """
     _, classpath = build(build_dir)

@@ -149,7 +149,7 @@ def run(vectors_dir: Path, build_dir: Path, *, reuse: bool = False) -> list[Case
 
     Raises
     ------
-    ToolchainMissing
+    flowtrack_course.ports.base.ToolchainMissing
         The ``mathics3`` Python package is not installed (``pip install -e ".[ports]"``).
     """
     if importlib.util.find_spec("mathics") is None:

@@ -60,7 +60,7 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
 
     Raises
     ------
-    ToolchainMissing
+    flowtrack_course.ports.base.ToolchainMissing
         Octave is not installed.
     """
     octave = _octave()

@@ -149,6 +149,14 @@ def _describe(x: Any) -> str:
 
 
 def call_label(function: str, args: Sequence[Any], kwargs: Mapping[str, Any] | None = None) -> str:
+    """How a call is shown in feedback: ``function(arg, ..., key=value)`` with every argument
+    described briefly (arrays by shape, floats to 4 digits, lists by length).
+
+    Examples
+    --------
+    >>> call_label("f", (1,), {"k": 2}).startswith("f(")
+    True
+    """
     parts = [_describe(a) for a in args] + [f"{k}={_describe(v)}" for k, v in (kwargs or {}).items()]
     return f"{function}({', '.join(parts)})"
 
@@ -185,7 +193,8 @@ def pinhole(fx: float, fy: float, cx: float = 0.0, cy: float = 0.0):
 
 
 def points_in_front(rng: np.random.Generator, n: int) -> np.ndarray:
-    """``n`` random points, shape (n, 3), with x, y in [-1, 1] and depth z in [0.5, 4] (in front of a camera)."""
+    """``n`` random points, shape (n, 3), with x, y in [-1, 1] and depth z in [0.5, 4] (in front of
+    a camera)."""
     X = rng.uniform(-1.0, 1.0, size=(n, 3))
     X[:, 2] = rng.uniform(0.5, 4.0, size=n)
     return X

@@ -66,7 +66,11 @@ def java_class(problem: str) -> str:
 
 
 class ToolchainMissing(RuntimeError):
-    """A compiler or interpreter a language needs is not installed."""
+    """A compiler or interpreter a language needs is not installed.
+
+    The grader's error; the port harnesses have their own,
+    :class:`flowtrack_course.ports.base.ToolchainMissing`.
+    """
 
 
 def support_text(language: str, name: str) -> str:
@@ -91,7 +95,8 @@ class Toolchain:
         return f"{problem}{self.extension}"
 
     def check(self) -> None:
-        """Raise :class:`ToolchainMissing` naming the Debian packages when a tool is missing."""
+        """Raise :class:`~flowtrack_course.grading.languages.toolchains.ToolchainMissing` naming the
+        Debian packages when a tool is missing."""
         missing = [e for e in self.executables if shutil.which(e) is None]
         if self.language == "mathics" and importlib.util.find_spec("mathics") is None:
             missing.append("the mathics Python package")
@@ -193,7 +198,7 @@ def cpp_harness_object(problem: str) -> Path:
 
     Raises
     ------
-    ToolchainMissing
+    flowtrack_course.grading.languages.toolchains.ToolchainMissing
         g++, Eigen or nlohmann/json is not installed.
     RuntimeError
         The harness does not compile (a bug of the course, never of a student).
