@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -124,7 +125,7 @@ def test_gradescope_without_namespaces_isolates_by_uid(autograder):
     assert data["score"] == 0.0 and data["tests"] and all(t["score"] == 0 for t in data["tests"])
     text = json.dumps(data)
     # the attack ran to its end, and the kernel refused every open (EACCES), not the audit hook
-    ran = text[text.index("ATTACK RAN"):].split("\\n")[0]
+    ran = re.search(r"ATTACK RAN [A-Za-z, ]*", text).group(0)  # the attack's own report, once
     assert ran.count("EACCES") == 8 and "READ" not in ran and "WROTE" not in ran, ran
     assert "kkkk" not in text and "1000" not in text
     assert sorted(p.name for p in (root / "results").iterdir()) == ["results.json"]
