@@ -313,6 +313,8 @@ def test_bad_camera_and_options():
         rgbd_scene_flow(*args, penalty="huber")
     with pytest.raises(ValueError, match="lam"):
         rgbd_scene_flow(*args, lam=-1.0)
+    with pytest.raises(ValueError, match="lam"):  # no smoothing: singular (rank-2 data terms)
+        rgbd_scene_flow(*args, lam=0.0)
     with pytest.raises(ValueError, match="use_depth"):
         rgbd_scene_flow(*args, use_depth=False, use_color=False)
 

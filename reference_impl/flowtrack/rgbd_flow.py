@@ -514,7 +514,8 @@ def _options(options):
         raise TypeError(f"rgbd_scene_flow got unknown option(s) {sorted(unknown)}; "
                         f"known: {sorted(_DEFAULTS)}")
     o = {**_DEFAULTS, **options}
-    o["lam"] = nonnegative(o["lam"], "lam")
+    # lam = 0 leaves every pixel's aperture null space (rank-2 data term) unresolved: a singular system
+    o["lam"] = positive(o["lam"], "lam")
     for k in ("sigma_i", "sigma_d", "sigma_s", "edge_scale", "occlusion"):
         o[k] = positive(o[k], k)
     o["blur"] = nonnegative(o["blur"], "blur")
@@ -666,7 +667,8 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     dt : float, > 0
         Time between the frames (s).
     **options
-        ``lam`` (0.05): smoothness weight :math:`\lambda`.
+        ``lam`` (0.05): smoothness weight :math:`\lambda`, > 0 (without smoothing each pixel's
+        data term has rank 2 and the system is singular: the aperture problem).
         ``sigma_i`` (0.02): photometric scale (grey levels in [0, 1]); residuals well above it are
         treated as outliers by the Charbonnier penalty.
         ``sigma_d`` (0.004 m): geometric scale (depth noise).
