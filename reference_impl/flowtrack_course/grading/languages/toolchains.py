@@ -208,8 +208,32 @@ def cpp_harness_object(problem: str) -> Path:
     header = support_text("cpp", f"{problem}.hpp")
     flags = [*CXX_FLAGS, f"-DFT_PROBLEM_{problem}"]
     key = hashlib.sha256("\0".join([harness, header, *flags, _compiler_version()]).encode()).hexdigest()[:24]
-    out_dir = _cache_dir("cpp")
-    obj = out_dir / f"harness-{problem}-{key}.o"
+
+    def build(tmp: Path) -> Path:
+        Path(tmp, "harness.cpp").write_text(harness, encoding="utf-8")
+        Path(tmp, "exercise.hpp").write_text(header, encoding="utf-8")
+        proc = subprocess.run(
+            ["g++", *flags, "-c", "harness.cpp", "-o", "harness.o"],
+            cwd=tmp,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        if proc.returncode != 0:
+            raise RuntimeError(f"the C++ harness of {problem} does not compile:\n{proc.stderr[-3000:]}")
+        return Path(tmp, "harness.o")
+
+    return _cached_artefact("cpp", f"harness-{problem}-{key}.o", build)
+
+
+def _cached_artefact(lang: str, name: str, build) -> Path:
+    """``name`` in the language's cache, made once by ``build(tmp) -> built file`` under a lock.
+
+    The cache holds only what the grader builds from its own sources (never a student's code); the
+    file name carries the hash of everything it was built from, so a stale artefact is never used.
+    """
+    out_dir = _cache_dir(lang)
+    obj = out_dir / name
     if obj.exists():
         return obj
     with open(out_dir / ".lock", "w") as lock:
@@ -217,18 +241,7 @@ def cpp_harness_object(problem: str) -> Path:
         if obj.exists():
             return obj
         with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
-            Path(tmp, "harness.cpp").write_text(harness, encoding="utf-8")
-            Path(tmp, "exercise.hpp").write_text(header, encoding="utf-8")
-            proc = subprocess.run(
-                ["g++", *flags, "-c", "harness.cpp", "-o", "harness.o"],
-                cwd=tmp,
-                capture_output=True,
-                text=True,
-                timeout=600,
-            )
-            if proc.returncode != 0:
-                raise RuntimeError(f"the C++ harness of {problem} does not compile:\n{proc.stderr[-3000:]}")
-            os.replace(Path(tmp, "harness.o"), obj)
+            os.replace(build(Path(tmp)), obj)
     return obj
 
 
@@ -245,32 +258,16 @@ def java_harness_class() -> Path:
     version = subprocess.run(["javac", "-version"], capture_output=True, text=True, timeout=120)
     text = "\0".join([harness, *api.values(), JAVA_CLASSPATH, version.stdout + version.stderr])
     key = hashlib.sha256(text.encode()).hexdigest()[:24]
-    out_dir = _cache_dir("java")
-    obj = out_dir / f"Harness-{key}.class"
-    if obj.exists():
-        return obj
-    with open(out_dir / ".lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if obj.exists():
-            return obj
-        with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
-            Path(tmp, "Harness.java").write_text(harness, encoding="utf-8")
-            for name, body in api.items():
-                Path(tmp, name).write_text(body, encoding="utf-8")
-            cmd = [
-                "javac",
-                "-encoding",
-                "UTF-8",
-                "-nowarn",
-                "-cp",
-                JAVA_CLASSPATH,
-                "-d",
-                "classes",
-                "Harness.java",
-                *api,
-            ]
-            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=600)
-            if proc.returncode != 0:
-                raise RuntimeError(f"the Java harness does not compile:\n{proc.stderr[-3000:]}")
-            os.replace(Path(tmp, "classes", "Harness.class"), obj)
-    return obj
+
+    def build(tmp: Path) -> Path:
+        Path(tmp, "Harness.java").write_text(harness, encoding="utf-8")
+        for name, body in api.items():
+            Path(tmp, name).write_text(body, encoding="utf-8")
+        cmd = ["javac", "-encoding", "UTF-8", "-nowarn", "-cp", JAVA_CLASSPATH, "-d", "classes",
+               "Harness.java", *api]
+        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=600)
+        if proc.returncode != 0:
+            raise RuntimeError(f"the Java harness does not compile:\n{proc.stderr[-3000:]}")
+        return Path(tmp, "classes", "Harness.class")
+
+    return _cached_artefact("java", f"Harness-{key}.class", build)
