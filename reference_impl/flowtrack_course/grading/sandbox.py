@@ -39,7 +39,10 @@ grader controls everything else. Defences, outermost first, and what each one st
    address space (memory bombs fail with MemoryError), processes (fork bombs), open files, file
    size, no core files; the grader enforces a wall-clock timeout per batch and output size per
    batch, and on any violation kills the whole sandbox (process group; bubblewrap's pid namespace;
-   as root also every process of the sandbox uid), so nothing outlives it.
+   as root also every process of the sandbox uid), so nothing outlives it. A seccomp filter
+   (:mod:`flowtrack_course.grading.seccomp`, every mode) refuses ``memfd_create``, System V shared
+   memory and IPC and a few kernel interfaces no exercise needs: memory that is in no process's
+   RLIMIT_AS cannot be had even where no cgroup can be made.
 4. **Inside the child** (a second line, never the only one): a ``sys.meta_path`` blocker and an
    audit hook refusing blocked imports, imports outside the allowlist (with a message naming it)
    and opening protected paths; fd 1/2 point at /dev/null and
@@ -145,6 +148,8 @@ from .runtime import (
     site_dirs,
     stub_dir,
 )
+from .seccomp import preexec_installer, seccomp_status
+from .seccomp import program as seccomp_program
 from .spec import Call, Outcome
 from .wire import is_plain, to_wire
 
@@ -350,6 +355,7 @@ class Sandbox:
         self._workdir: Path | None = None
         self._cgroup: SandboxCgroup | None = None
         self.cgroup = ""  # "v2" or "v1" when the running child has a cgroup of its own
+        self.seccomp = False  # True when the running child has the seccomp filter (grading.seccomp)
         self.cleanup_problems: list[str] = []
         self._next_disk_check = 0.0
         self._cpu_used = 0.0
@@ -496,7 +502,7 @@ class Sandbox:
         """What the sandbox's cgroup may hold: ``memory_bytes`` plus its two tmpfs of ``disk_bytes``."""
         return int(self.limits.memory_bytes + 2 * self.limits.disk_bytes)
 
-    def _preexec(self, nproc_outer: int | None):
+    def _preexec(self, nproc_outer: int | None, seccomp=None):
         lim = self.limits
         uid = self._uid
         cgroup = self._cgroup
@@ -514,6 +520,8 @@ class Sandbox:
                 rl.setrlimit(rl.RLIMIT_NPROC, (nproc_outer, nproc_outer))
             if cgroup is not None:
                 cgroup.enter()
+            if seccomp is not None:  # the setpriv mode and the fallback (bubblewrap loads it itself)
+                seccomp()
             if not via_setpriv:
                 drop_to(uid)
 
@@ -575,14 +583,29 @@ class Sandbox:
         if self._zygote:
             self._ctl, ctl_child = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
             ctl_fd = ctl_child.fileno()
+        # The seccomp filter (memfd, System V IPC, ... refused: see grading.seccomp): bubblewrap loads
+        # it from a pipe (--seccomp FD) right before it executes the child; otherwise preexec_fn does.
+        self.seccomp, _ = seccomp_status()
+        install, filter_fd = None, None
+        if self.seccomp and self._mode == "bwrap":
+            filter_fd, fw = os.pipe()
+            with os.fdopen(fw, "wb") as fh:
+                fh.write(seccomp_program())
+            cmd = [cmd[0], "--seccomp", str(filter_fd), *cmd[1:]]
+        elif self.seccomp:
+            install = preexec_installer()
+        fds = (w,) if ctl_child is None else (w, ctl_child.fileno())
         try:
             self._proc = subprocess.Popen(
                 [*cmd, str(w)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._stderr,
-                pass_fds=(w,) if ctl_child is None else (w, ctl_child.fileno()), env=env,
-                cwd=str(workdir / "home"), start_new_session=True, preexec_fn=self._preexec(nproc_outer),
+                pass_fds=fds if filter_fd is None else (*fds, filter_fd), env=env,
+                cwd=str(workdir / "home"), start_new_session=True,
+                preexec_fn=self._preexec(nproc_outer, install),
             )
         finally:
             os.close(w)
+            if filter_fd is not None:
+                os.close(filter_fd)
             if ctl_child is not None:
                 ctl_child.close()
         self._reply_fd = r
