@@ -4,7 +4,9 @@ files, memfd and forked children's memory.
 Each attack must score as an honest wrong answer or 0, leave the run whole (a later call in a fresh
 child works) and leave nothing outside (the student's folder is gone after ``close``). The memory
 attacks need a cgroup (v2 delegated, or v1 writable as root); they are skipped where the sandbox
-falls back to resource limits alone (see :mod:`flowtrack_course.grading.cgroups`).
+falls back to resource limits alone (see :mod:`flowtrack_course.grading.cgroups`). Without any cgroup
+(``FLOWTRACK_SANDBOX_CGROUP=0``) the seccomp filter (:mod:`flowtrack_course.grading.seccomp`) refuses
+memfd and System V shared memory, whose pages count in no process's RLIMIT_AS.
 """
 
 import json
@@ -206,8 +208,10 @@ def attack():
 
 
 @needs_cgroup
-def test_memfd_memory_counts(mode):
-    # 48 memfds of 24 MiB (1.1 GiB) under 768 MiB + 32 MiB: memfd pages are in no process' size
+def test_memfd_memory_counts(mode, monkeypatch):
+    # 48 memfds of 24 MiB (1.1 GiB) under 768 MiB + 32 MiB: memfd pages are in no process' size.
+    # The cgroup on its own (the seccomp filter, which refuses memfd_create, is tested below).
+    monkeypatch.setenv("FLOWTRACK_SANDBOX_SECCOMP", "0")
     cell = """
 import os
 KEEP = []
@@ -247,6 +251,68 @@ def attack():
     # the kernel stops the sandbox as a whole (cgroup v2: memory.oom.group) or its largest
     # processes (v1): never do all four children hold their memory
     assert (not out.ok and "memory" in out.error) or (out.ok and out.value < 4), out
+
+
+MEMFD = """
+import os
+KEEP = []
+def attack():
+    for i in range(24):  # 24 x 16 MiB = 384 MiB, in no process's address space
+        fd = os.memfd_create(f"m{i}")
+        KEEP.append(fd)
+        os.write(fd, b"x" * (16 << 20))
+    return len(KEEP)
+"""
+
+SYSV_SHM = """
+import ctypes
+KEEP = []
+def attack():
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.shmget.argtypes = [ctypes.c_int, ctypes.c_size_t, ctypes.c_int]
+    libc.shmat.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_int]
+    libc.shmat.restype = ctypes.c_void_p
+    for i in range(24):  # 24 segments of 16 MiB, each kept after the process is gone (no IPC_RMID)
+        sid = libc.shmget(0, 16 << 20, 0o1600)  # IPC_PRIVATE, IPC_CREAT | 0600
+        if sid < 0:
+            raise OSError(ctypes.get_errno(), "shmget refused")
+        addr = libc.shmat(sid, None, 0)
+        ctypes.memset(addr, 1, 16 << 20)
+        KEEP.append(sid)
+    return len(KEEP)
+"""
+
+
+def _sysv_shm_segments() -> int:
+    """System V shared memory segments of the machine's IPC namespace (the grader's)."""
+    try:
+        return len(Path("/proc/sysvipc/shm").read_text().splitlines()) - 1
+    except OSError:
+        return 0
+
+
+@pytest.mark.parametrize("cell", [MEMFD, SYSV_SHM], ids=["memfd", "sysv_shm"])
+def test_memory_outside_rlimit_as_without_any_cgroup(mode, cell, monkeypatch):
+    from flowtrack_course.grading.seccomp import seccomp_status
+
+    ok, why = seccomp_status()
+    if not ok:
+        pytest.skip(f"no seccomp filter here: {why}")
+    monkeypatch.setenv("FLOWTRACK_SANDBOX_CGROUP", "0")  # as for an ordinary user without delegation
+    assert cgroup_status()[0] == ""
+    limits = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=768 * MiB, processes=16,
+                    disk_bytes=32 * MiB, file_size=32 * MiB, open_files=64)
+    before = _sysv_shm_segments()
+    out = _run_attack(mode, cell, Call("attack"), limits)
+    # refused by the seccomp filter (or, in the fallback, its audit hook refusing ctypes first)
+    assert not out.ok and ("PermissionError" in out.error or "not permitted" in out.error), out
+    assert _sysv_shm_segments() == before  # nothing of it outlives the sandbox
+    if mode == "bwrap" and cell is MEMFD:  # the attack is real: with neither defence it holds 384 MiB
+        monkeypatch.setenv("FLOWTRACK_SANDBOX_SECCOMP", "0")
+        with Sandbox([("a", cell)], limits=limits) as sb:
+            (held,) = sb.run([Call("attack")], timeout=20)
+            assert not sb.seccomp
+        assert held.ok and held.value == 24, held
 
 
 @pytest.fixture

@@ -123,7 +123,8 @@ def _instructions(machine: str) -> list[tuple[int, int, int, int]]:
     except KeyError:
         raise ValueError(f"machine: no seccomp table for {machine!r}; known: {sorted(SYSCALLS)}") from None
     nrs = sorted(set(numbers.values()))
-    head: list[tuple[int, int, int, int]] = [(_LD_W_ABS, 0, 0, 4), (_JEQ_K, 0, -1, arch), (_LD_W_ABS, 0, 0, 0)]
+    head: list[tuple[int, int, int, int]] = [
+        (_LD_W_ABS, 0, 0, 4), (_JEQ_K, 0, -1, arch), (_LD_W_ABS, 0, 0, 0)]
     if machine == "x86_64":
         head.append((_JGE_K, -1, 0, _X32_SYSCALL_BIT))
     body = [(_JEQ_K, -2, 0, nr) for nr in nrs]
