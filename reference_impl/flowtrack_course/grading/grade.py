@@ -728,6 +728,29 @@ def _write_grades_csv(path: Path, rows: Iterable[dict], exercises: Sequence[Exer
     write_atomic(path, buf.getvalue())
 
 
+#: disk space the grader keeps for its outputs where students write to the same filesystem
+GRADER_RESERVE = 32 << 20
+
+
+def _check_disk_reserve(out: str | os.PathLike, jobs: int) -> None:
+    """Refuse to grade where students could fill the filesystem of the outputs (issue 17).
+
+    Outside bubblewrap the students' files are on the host (the sandbox's work area, the
+    world-writable folders), each student's bounded by the meter at ``disk_bytes`` plus what it
+    writes between two measurements (counted as ``disk_bytes`` again). See
+    :func:`~flowtrack_course.grading.isolation.disk_reserve_problem`.
+    """
+    from .cache import cache_root
+    from .isolation import WORLD_WRITABLE, disk_reserve_problem
+    from .sandbox import Limits
+
+    students_max = jobs * 2 * Limits().disk_bytes
+    problem = disk_reserve_problem([cache_root() / "work", *WORLD_WRITABLE], [out, tempfile.gettempdir()],
+                                   students_max, GRADER_RESERVE)
+    if problem:
+        raise UnsafeSandbox(problem)
+
+
 def grade_class(
     submissions: str | os.PathLike,
     out: str | os.PathLike,
@@ -809,6 +832,8 @@ def grade_class(
                 "bubblewrap) and allow unprivileged user namespaces, or pass --allow-unsafe-sandbox "
                 "(allow_unsafe_sandbox=True) to grade anyway."
             )
+        if mode != "bwrap":
+            _check_disk_reserve(out, min(jobs, max(1, len(students))))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ex_hash = exercises_hash(exercises)

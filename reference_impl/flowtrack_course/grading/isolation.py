@@ -26,6 +26,7 @@ __all__ = [
     "bwrap_status",
     "choose_mode",
     "descendants",
+    "disk_reserve_problem",
     "drop_to",
     "kill_uid",
     "mount_usage",
@@ -287,6 +288,60 @@ def uid_has_processes(uid: int) -> bool:
         except (OSError, IndexError):
             continue
     return False
+
+
+def _device(path) -> int | None:
+    """``st_dev`` of ``path``, or of its nearest existing ancestor (None when nothing exists)."""
+    for p in [Path(path), *Path(path).parents]:
+        try:
+            return os.stat(p).st_dev
+        except OSError:
+            continue
+    return None
+
+
+def disk_reserve_problem(writable, protected, students_max: int, reserve: int) -> str:
+    """Why student code could leave the grader without disk space ("" when it cannot).
+
+    Where students write to the host's filesystems (the setpriv mode and the fallback: their work
+    area, the world-writable folders), the sandbox's meter stops each one at its disk limit, but
+    ``students_max`` bytes (the students graded at once, each up to its limit plus what it writes
+    between two measurements) may be taken before that. For each of the ``protected`` paths (the
+    output folder, the grader's temporary folder) on a filesystem one of the ``writable`` paths is
+    on, the grader must keep ``reserve`` bytes once the students took what they can: what an
+    unprivileged user may write there (``f_bavail``; the sandbox runs as one) is what they can take,
+    what the grader may write is ``f_bfree`` as root (the filesystem's root reservation is its
+    alone) and ``f_bavail`` otherwise.
+
+    Returns
+    -------
+    str
+        A message naming the filesystem, the numbers and the remedies, or ``""``.
+    """
+    shared = {d for d in map(_device, writable) if d is not None}
+    as_root = os.geteuid() == 0
+    for path in protected:
+        dev = _device(path)
+        if dev is None or dev not in shared:
+            continue
+        p = next(q for q in [Path(path), *Path(path).parents] if q.exists())
+        st = os.statvfs(p)
+        user = st.f_bavail * st.f_frsize
+        grader = st.f_bfree * st.f_frsize if as_root else user
+        if grader - min(user, students_max) >= reserve:
+            continue
+        mib = 1 << 20
+        return (
+            f"the students' code can write to the filesystem of {path} (the sandbox's work area "
+            "is there, or a world-writable folder is): it has "
+            f"{user // mib} MiB free for them and {grader // mib} MiB for the grader, and the students "
+            f"graded at once may write up to {students_max // mib} MiB before the sandbox stops them, "
+            f"which would leave the grader less than its reserve of {reserve // mib} MiB for the "
+            "outputs. Put the sandbox's work area on another filesystem (FLOWTRACK_SANDBOX_CACHE, "
+            "e.g. a tmpfs), free space, grade with fewer --jobs, or give root a reservation "
+            f"the students cannot use (tune2fs -r) of at least {reserve // mib} MiB."
+        )
+    return ""
 
 
 _DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
