@@ -17,8 +17,9 @@ a grading worker. :class:`SandboxCgroup` makes one per sandbox, below the grader
 
 When neither is available (an ordinary user without delegation, most laptops) the sandbox falls back
 to its resource limits alone (RLIMIT_AS per process, RLIMIT_NPROC, a tmpfs bounded by size): memory
-in forked children and in memfds is then not counted together. :func:`cgroup_status` says which case
-applies; ``FLOWTRACK_SANDBOX_CGROUP=0`` turns cgroups off.
+in forked children is then not counted together; memfd and System V shared memory, which no process's
+RLIMIT_AS counts, are refused by the seccomp filter (:mod:`flowtrack_course.grading.seccomp`).
+:func:`cgroup_status` says which case applies; ``FLOWTRACK_SANDBOX_CGROUP=0`` turns cgroups off.
 """
 
 from __future__ import annotations

@@ -178,7 +178,9 @@ class Limits:
         Address space per process (RLIMIT_AS); numpy with single-threaded OpenBLAS needs about
         0.5 GiB. Where the sandbox gets a cgroup (:mod:`flowtrack_course.grading.cgroups`), everything its
         processes hold together (forked children, memfd and shared memory, its tmpfs) is bounded
-        by ``memory_bytes + 2 * disk_bytes``; otherwise only per process.
+        by ``memory_bytes + 2 * disk_bytes``; otherwise only per process, and the seccomp filter
+        (:mod:`flowtrack_course.grading.seccomp`) refuses memfd and System V shared memory, which no
+        process's address space counts.
     processes : int
         Processes and threads (RLIMIT_NPROC) the sandbox may hold.
     open_files : int
