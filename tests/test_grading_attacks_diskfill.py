@@ -220,3 +220,17 @@ def test_a_disk_filler_on_a_small_filesystem_leaves_the_next_run_whole(mode, sma
     assert list((fs / "cache" / f"flowtrack-sandbox-{os.geteuid()}" / "work").iterdir()) == []
     if mode == "bwrap":  # not a byte of the filler reached the image
         assert _free(fs)[0] > 80 * MiB
+
+
+def test_the_reserve_check_needs_a_shared_filesystem_and_too_little_room(tmp_path):
+    from flowtrack_course.grading.isolation import disk_reserve_problem
+
+    work, out = tmp_path / "work", tmp_path / "out" / "not-yet"  # out: its nearest existing ancestor
+    work.mkdir()
+    st = os.statvfs(tmp_path)
+    room = st.f_bavail * st.f_frsize
+    assert disk_reserve_problem([work], [out], students_max=0, reserve=0) == ""
+    problem = disk_reserve_problem([work], [out], students_max=room + (1 << 40), reserve=room + (1 << 40))
+    assert "FLOWTRACK_SANDBOX_CACHE" in problem and str(out) in problem
+    # another filesystem (procfs) than the students' never needs a reserve
+    assert disk_reserve_problem([work], ["/proc/self"], students_max=1 << 60, reserve=1 << 60) == ""
