@@ -134,7 +134,6 @@ def assign_tracks(tracks: dict[int, np.ndarray], truth: dict[int, np.ndarray], g
     return {ti[i]: oi[j] for i, j in zip(r, c) if C[i, j] <= gate}
 
 
-@open3d_threads(1)
 def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig):
     """Detections of frame ``t`` with their velocity measurements: ``(Z (K, 3), U (K, 3), C (K, 3, 3))``.
 
@@ -160,6 +159,7 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     return Z, U, C
 
 
+@open3d_threads(1)
 def run_demo(
     out: Path | str = "out",
     n_objects: int = 3,
