@@ -23,9 +23,9 @@ What the demo app (``flowtrack demo``) and lesson 6 share. Per frame pair :math:
 **The velocity of a visible centroid.** A detection is the centroid :math:`c_t` of the visible
 surface :math:`S_t` of an object, so a track follows :math:`c_t`, not a point of the body. The mean
 flow :math:`\bar v` of the piece is the velocity of the *material* at :math:`c_t`; the centroid moves
-differently whenever :math:`S_t` changes: with :math:`S_{t+1} = P' \cup A` (:math:`P'` the points of
-:math:`S_t` that stay visible, moved by the flow, :math:`A` the surface revealed, and :math:`H = S_t
-\setminus P` the surface hidden),
+differently whenever :math:`S_t` changes: with :math:`P \subset S_t` the points that stay visible,
+:math:`P'` the same points moved by the flow, :math:`H = S_t \setminus P` the surface hidden and
+:math:`A` the surface revealed, :math:`S_{t+1} = P' \cup A` and
 
 .. math::
     \frac{c_{t+1} - c_t}{\Delta t} = \bar v_P + \frac{\bar X_P - c_t}{\Delta t}
