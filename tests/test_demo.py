@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from flowtrack.pipeline import METHODS, RGBD_METHOD, detections_from_clusters
+from flowtrack.pipeline import METHODS, RGBD_METHOD, detection_pieces, detections_from_clusters
 from flowtrack.synth import make_scene
 from flowtrack_course.cli import main
 from flowtrack_course.demo import DemoConfig
@@ -222,6 +222,10 @@ def test_detect_objects_removes_the_table_splits_pieces_and_skips_static_surface
     order = np.argsort(Z[:, 0])
     np.testing.assert_allclose(Z[order], [blobs[1].mean(axis=0), blobs[0].mean(axis=0)], atol=1e-12)
     np.testing.assert_allclose(V[order], [[0.0, -0.1, 0.0], [0.1, 0.0, 0.0]], atol=1e-12)
+    # the pieces behind those detections are the two blobs' index sets, in the detections' order
+    pieces = detection_pieces(P, labels, flow, cfg, next_points=Y, dt=dt)
+    assert sorted(map(tuple, pieces)) == [tuple(range(6000, 6400)), tuple(range(6400, 6800))]
+    np.testing.assert_allclose([P[p].mean(axis=0) for p in pieces], Z, atol=1e-12)
     with pytest.raises(ValueError, match="dt"):
         detections_from_clusters(P, labels, flow, cfg, next_points=Y)
 

@@ -223,3 +223,107 @@ def test_scene_flow_and_clusters_clusters_a_given_flow(pair):
     assert rigid < 0.002, rigid
     with pytest.raises(ValueError, match="flow"):
         scene_flow_and_clusters(X, Y, dt, PipelineConfig(), flow=gt[:-1])
+
+
+# ------------------------------------------------------------------------------------------------
+# the velocity of a visible centroid (issue 15)
+# ------------------------------------------------------------------------------------------------
+def _ray_cast_plate(cam, plate, occluder_x):
+    """Depth image and the plate's visible pixel hits, by casting every pixel's ray (brute force).
+
+    Scene: a background wall at Z = 2 m, a fronto-parallel plate ``(x0, x1, y0, y1, Z)`` and a static
+    occluding wall at Z = 0.5 m covering ``x > occluder_x`` (x measured at that depth).
+    """
+    x0, x1, y0, y1, Zp = plate
+    depth = np.full((cam.height, cam.width), 2.0)
+    hits = []
+    for v in range(cam.height):
+        for u in range(cam.width):
+            ray = np.array([(u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0])
+            if 0.5 * ray[0] > occluder_x:
+                depth[v, u] = 0.5
+                continue
+            p = Zp * ray
+            if x0 <= p[0] <= x1 and y0 <= p[1] <= y1:
+                depth[v, u] = Zp
+                hits.append(p)
+    return depth, np.array(hits)
+
+
+@pytest.mark.parametrize("occluder_x", [np.inf, 0.0])
+def test_visible_centroid_velocity_is_the_brute_force_centroid_difference(occluder_x):
+    """A plate moving in x, y and z, fully visible or sliding behind a nearer wall: the velocity is the
+    difference of the ray-cast visible centroids over dt; the covariance is widened by exactly the gap
+    to the material flow, and only when it is hidden."""
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import cloud_from_depth, visible_centroid_velocities
+
+    cam = PinholeCamera(fx=200.0, fy=200.0, cx=39.5, cy=29.5, width=80, height=60)
+    dt, vel = 0.1, np.array([0.2, -0.05, 0.1])
+    plate = np.array([-0.12, 0.04, -0.06, 0.05, 1.0])
+    plate1 = plate + dt * np.array([vel[0], vel[0], vel[1], vel[1], vel[2]])
+    d0, hits0 = _ray_cast_plate(cam, plate, occluder_x)
+    d1, hits1 = _ray_cast_plate(cam, plate1, occluder_x)
+    oracle = (hits1.mean(axis=0) - hits0.mean(axis=0)) / dt
+    # a random half of the pixels as the cloud, with the exact flow (static elsewhere)
+    rng = np.random.default_rng(1)
+    P = cloud_from_depth(d0, cam)
+    P = P[np.sort(rng.choice(len(P), len(P) // 2, replace=False))]
+    piece = np.flatnonzero(np.isclose(P[:, 2], 1.0))
+    flow = np.zeros_like(P)
+    flow[piece] = vel
+    C_in = np.diag([1e-4, 2e-4, 3e-4])[None]
+    # pixels are 5 mm apart on the plate and the cloud has every second one: radius 2 cm
+    U, C = visible_centroid_velocities(P, [piece], flow, d0, d1, cam, dt, radius=0.02, velocity_covs=C_in,
+                                       inflation=4.0)
+    np.testing.assert_allclose(U[0], oracle, atol=1e-9)
+    gap = oracle - vel
+    np.testing.assert_allclose(C[0], C_in[0] + 4.0 * np.outer(gap, gap), atol=1e-12)
+    if np.isfinite(occluder_x):  # hidden from the right: the visible centroid lags the material
+        assert U[0, 0] < vel[0] - 0.05
+    else:  # nothing hidden: only the pixel sampling separates the two
+        np.testing.assert_allclose(U[0], vel, atol=0.02)
+
+
+def test_visible_centroid_velocities_fall_back_to_the_mean_flow():
+    """A piece with no labelled pixel (here: no pixel within radius) keeps its mean flow and covariance;
+    a NaN covariance row stays NaN; no pieces give empty arrays."""
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import visible_centroid_velocities
+
+    cam = PinholeCamera(fx=100.0, fy=100.0, cx=4.5, cy=4.5, width=10, height=10)
+    depth = np.full((10, 10), 1.0)
+    P = np.array([[5.0, 5.0, 5.0], [5.1, 5.0, 5.0], [5.0, 5.1, 5.0], [9.0, 9.0, 9.0]])  # far from every pixel
+    flow = np.array([[0.1, 0.0, 0.0], [0.3, 0.0, 0.0], [0.2, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    covs = np.stack([np.eye(3) * 1e-4, np.full((3, 3), np.nan)])
+    U, C = visible_centroid_velocities(P, [np.arange(3), np.array([3])], flow, depth, depth, cam, 0.1,
+                                       velocity_covs=covs)
+    np.testing.assert_allclose(U, [[0.2, 0.0, 0.0], [0.0, 0.0, 0.0]], atol=1e-15)
+    np.testing.assert_array_equal(C[0], covs[0])
+    assert np.isnan(C[1]).all()
+    U, C = visible_centroid_velocities(P, [], flow, depth, depth, cam, 0.1)
+    assert U.shape == (0, 3) and C is None
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"pieces": [np.array([0, 7])]}, "pieces"),
+        ({"pieces": [np.array([0.5])]}, "pieces"),
+        ({"depth_t1": np.ones((4, 5))}, "depth_t"),
+        ({"radius": 0.0}, "radius"),
+        ({"inflation": -1.0}, "inflation"),
+        ({"dt": 0.0}, "dt"),
+        ({"flow": np.zeros((3, 3))}, "flow"),
+        ({"velocity_covs": np.zeros((2, 3, 3))}, "velocity_covs"),
+    ],
+)
+def test_visible_centroid_velocities_bad_input(kwargs, match):
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import visible_centroid_velocities
+
+    cam = PinholeCamera(fx=100.0, fy=100.0, cx=2.0, cy=2.0, width=5, height=5)
+    args = {"points": np.zeros((4, 3)), "pieces": [np.array([0, 1])], "flow": np.zeros((4, 3)),
+            "depth_t": np.ones((5, 5)), "depth_t1": np.ones((5, 5)), "camera": cam, "dt": 0.1} | kwargs
+    with pytest.raises(ValueError, match=match):
+        visible_centroid_velocities(**args)

@@ -14,8 +14,49 @@ What the demo app (``flowtrack demo``) and lesson 6 share. Per frame pair :math:
    RANSAC) and turns each remaining connected piece of a cluster into a detection: its centroid
    :math:`\bar X` and mean rigid velocity :math:`\bar v` (the mean of a rigid motion's flow over a
    piece is the flow of its centroid, exactly);
-4. :meth:`flowtrack.tracking.MultiObjectTracker.step` takes the detections (and velocities), and
+4. :func:`visible_centroid_velocities` gives each detection the velocity of what it measures, the
+   centroid of the object's *visible* surface, and a velocity covariance inflated where the visible
+   extent changes (below);
+5. :meth:`flowtrack.tracking.MultiObjectTracker.step` takes the detections (and velocities), and
    :meth:`~flowtrack.tracking.MultiObjectTracker.predict_ahead` predicts every track N frames.
+
+**The velocity of a visible centroid.** A detection is the centroid :math:`c_t` of the visible
+surface :math:`S_t` of an object, so a track follows :math:`c_t`, not a point of the body. The mean
+flow :math:`\bar v` of the piece is the velocity of the *material* at :math:`c_t`; the centroid moves
+differently whenever :math:`S_t` changes: with :math:`P \subset S_t` the points that stay visible,
+:math:`P'` the same points moved by the flow, :math:`H = S_t \setminus P` the surface hidden and
+:math:`A` the surface revealed, :math:`S_{t+1} = P' \cup A` and
+
+.. math::
+    \frac{c_{t+1} - c_t}{\Delta t} = \bar v_P + \frac{\bar X_P - c_t}{\Delta t}
+    + \frac{|A|}{|P| + |A|}\,\frac{\bar Y_A - \bar Y_{P'}}{\Delta t},
+
+(:math:`\bar v_P` the mean flow of the persisting points, :math:`\bar X_P` their centroid at t,
+:math:`\bar Y` centroids at t+1). Only when nothing is hidden or revealed (:math:`H = A = \emptyset`)
+is this the mean flow. While an object slides behind an occluder, leaves or enters the image, or
+turns a face away, the last two terms are a few cm/s, as large as the flow's own error, and a filter
+fed :math:`\bar v` extrapolates the visible centroid wrongly even with the true flow.
+:func:`visible_centroid_velocities` measures the left side directly, at full resolution: every
+valid pixel of depth image t is labelled with the detection of its nearest cloud point
+:math:`X_i` and every pixel of depth image t+1 with the detection of its nearest *flow-warped*
+point :math:`X_i + v_i\,\Delta t` (static points included, so a pixel belongs to an object only
+when the object is its nearest neighbour; farther than ``radius`` from every point: no label).
+The flow thus supplies the correspondence; a pixel that becomes hidden has no counterpart at t+1,
+a revealed one next to the object's warped surface joins it. Then
+
+.. math::
+    u = \frac{\operatorname{mean}\{B_{t+1}(p) : \ell_{t+1}(p) = k\}
+            - \operatorname{mean}\{B_t(p) : \ell_t(p) = k\}}{\Delta t},
+    \qquad
+    C_u = C_v + \kappa\,(u - \bar v)(u - \bar v)^\top ,
+
+with :math:`B_t(p)` the back-projection of pixel p. :math:`C_v` is the flow-residual covariance
+(:func:`flowtrack.motion.detection_velocity_covariances`); the gap :math:`u - \bar v` between the
+visible centroid's and the material's velocity is the *measured* visible-extent change, and
+:math:`\kappa` (``extent_change_inflation``, 4: the gap as a two-standard-deviation error) widens
+the covariance along it. Without a change the gap is the pixel-sampling noise (a few mm/s) and
+:math:`u \approx \bar v`; with one, the filter learns the centroid's motion yet gates and coasts
+with the object's (an object hidden while it slowed would otherwise reappear outside its gate).
 
 Examples
 --------
@@ -51,12 +92,14 @@ __all__ = [
     "PipelineConfig",
     "RGBD_METHOD",
     "cloud_from_depth",
+    "detection_pieces",
     "detections_from_clusters",
     "open3d_threads",
     "rgbd_cloud_flow",
     "scene_flow_and_clusters",
     "subsample",
     "support_planes",
+    "visible_centroid_velocities",
 ]
 
 #: The scene-flow methods of :func:`scene_flow_and_clusters`, in the order of the demo's tables.
@@ -81,7 +124,11 @@ class PipelineConfig:
     track_q: float = 0.1  #: acceleration variance of the tracker's constant-velocity model ((m/s²)²)
     track_r: float = 1e-4  #: detection (cluster centroid) variance (m²): 1 cm standard deviation
     min_hits: int = 2  #: detections that confirm a track
-    max_misses: int = 8  #: frames a confirmed track may coast through an occlusion
+    #: frames a confirmed track may coast through an occlusion. The demo's scenes hide an object for up
+    #: to 9 frames (the occlusion scenario's object 1 behind the static box, 0.9 s at 10 Hz); 12 keeps its
+    #: track and id through that with a margin. A coasting track's position standard deviation after k
+    #: frames grows like sqrt(q (k dt)^3 / 3): 16 cm after 9 frames, 24 cm after 12 with the defaults.
+    max_misses: int = 12
     plane_threshold: float = 0.006  #: RANSAC inlier distance of the support planes (table, walls), m
     max_planes: int = 2  #: support planes removed before detection (each >= plane_min_share of the cloud)
     plane_min_share: float = 0.08
@@ -100,6 +147,13 @@ class PipelineConfig:
     #: its outline, a visible surface whose centroid slides under occlusion): the RGB-D flow's
     #: moving-point EPE3D is about 2.7 mm per frame (0.027 m/s) on the demo's scene.
     velocity_min_std: float = 0.02
+    #: radius (m) within which a depth pixel takes the label of its nearest cloud point (or flow-warped
+    #: cloud point) in :func:`visible_centroid_velocities`; about twice the subsampled cloud's spacing
+    centroid_radius: float = 0.01
+    #: inflation k of a detection's velocity covariance by the visible-extent change,
+    #: ``C + k (u - v)(u - v)^T`` (:func:`visible_centroid_velocities`): k = 4 treats the gap between
+    #: the visible centroid's velocity u and the material flow v as a two-standard-deviation error
+    extent_change_inflation: float = 4.0
 
 
 def subsample(n: int, max_points: int, rng: np.random.Generator) -> np.ndarray:
@@ -325,6 +379,53 @@ def support_planes(points, config: PipelineConfig | None = None) -> np.ndarray:
     return on
 
 
+def detection_pieces(points, clusters, flow, config: PipelineConfig | None = None, next_points=None,
+                     dt: float | None = None) -> list[np.ndarray]:
+    r"""The point sets of :func:`detections_from_clusters`' detections, in the same order.
+
+    Parameters are those of :func:`detections_from_clusters`.
+
+    Returns
+    -------
+    list of ndarray of int
+        Indices into ``points`` of each detection's piece; detection k is
+        ``(points[pieces[k]].mean(0), flow[pieces[k]].mean(0))``.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    cfg = config if config is not None else PipelineConfig()
+    P = as_array(points, "points", ("N", 3))
+    clusters = as_labels(clusters, "clusters", len(P), min_label=-1)
+    flow = as_array(flow, "flow", (len(P), 3))
+    tree = None
+    if next_points is not None:
+        if dt is None:
+            raise ValueError("dt must be given with next_points")
+        dt = positive(dt, "dt")
+        tree = cKDTree(as_array(next_points, "next_points", ("M", 3)))
+    keep = (clusters >= 0) & ~support_planes(P, cfg)
+    pieces = []
+    for c in np.unique(clusters[keep]):
+        idx = np.flatnonzero(keep & (clusters == c))
+        if len(idx) < cfg.min_detection_points:
+            continue
+        pairs = cKDTree(P[idx]).query_pairs(cfg.cluster_radius, output_type="ndarray")
+        A = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(idx), len(idx)))
+        _, comp = connected_components(A, directed=False)
+        for j in np.unique(comp):
+            piece = idx[comp == j]
+            if len(piece) >= cfg.min_detection_points:
+                if tree is not None:
+                    d_static = np.median(tree.query(P[piece])[0])
+                    d_moving = np.median(tree.query(P[piece] + dt * flow[piece])[0])
+                    if d_static <= d_moving:
+                        continue
+                pieces.append(piece)
+    return pieces
+
+
 def detections_from_clusters(points, clusters, flow, config: PipelineConfig | None = None, next_points=None,
                              dt: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     r"""Object detections from motion clusters: centroid and mean velocity of each object piece.
@@ -334,7 +435,8 @@ def detections_from_clusters(points, clusters, flow, config: PipelineConfig | No
     table next to an object cannot be told apart from it by geometry. The support planes are
     therefore removed (:func:`support_planes`) and each cluster's remaining points are split into
     spatially connected pieces (radius ``cluster_radius``); every piece with at least
-    ``min_detection_points`` points is a detection :math:`(\bar X, \bar v)`.
+    ``min_detection_points`` points is a detection :math:`(\bar X, \bar v)` (the pieces themselves:
+    :func:`detection_pieces`).
 
     Parameters
     ----------
@@ -357,37 +459,135 @@ def detections_from_clusters(points, clusters, flow, config: PipelineConfig | No
     -------
     centroids, velocities : ndarray, shape (K, 3)
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    P = as_array(points, "points", ("N", 3))
+    flow = as_array(flow, "flow", (len(P), 3))
+    pieces = detection_pieces(P, clusters, flow, config, next_points, dt)
+    Z = [P[piece].mean(axis=0) for piece in pieces]
+    V = [flow[piece].mean(axis=0) for piece in pieces]
+    return np.array(Z).reshape(-1, 3), np.array(V).reshape(-1, 3)
+
+
+def visible_centroid_velocities(points, pieces, flow, depth_t, depth_t1, camera, dt, *, radius: float = 0.01,
+                                velocity_covs=None, inflation: float = 4.0, min_pixels: int = 10):
+    r"""Velocity of each detection's visible-surface centroid over a frame pair, and its covariance.
+
+    The method and its maths are in the module docstring (*The velocity of a visible centroid*):
+    the pixels of ``depth_t`` take the label of their nearest point of ``points``, those of
+    ``depth_t1`` the label of their nearest flow-warped point ``points + dt * flow`` (within
+    ``radius``, else none); detection k's velocity is the difference of the centroids of its
+    back-projected pixels divided by ``dt``,
+    :math:`u_k = (\bar B_{t+1}[\ell_{t+1} = k] - \bar B_t[\ell_t = k])/\Delta t` (:math:`\bar B` the mean
+    back-projection of the pixels with that label),
+    and with ``velocity_covs`` its covariance is
+    :math:`C_k + \kappa (u_k - \bar v_k)(u_k - \bar v_k)^\top`, :math:`\bar v_k` the piece's mean flow.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+        The cloud of frame t (camera frame, metres); any subset of ``depth_t``'s back-projection
+        or a voxel-thinned version of it.
+    pieces : sequence of array_like of int
+        Indices into ``points`` of each detection (:func:`detection_pieces`); K pieces.
+    flow : array_like, shape (N, 3)
+        Velocities of ``points`` (m/s), e.g. :func:`rgbd_cloud_flow`.
+    depth_t, depth_t1 : array_like, shape (H, W)
+        The depth images of frames t and t+1 (metres; 0 / non-finite = no measurement).
+    camera : flowtrack.camera.PinholeCamera
+    dt : float, > 0
+    radius : float, > 0
+        Farthest a pixel may be from its nearest (warped) cloud point and still take its label (m).
+    velocity_covs : array_like, shape (K, 3, 3), optional
+        Covariance of each piece's mean flow (:func:`flowtrack.motion.detection_velocity_covariances`);
+        a NaN row stays NaN.
+    inflation : float, >= 0
+        :math:`\kappa`.
+    min_pixels : int, >= 1
+        A detection with fewer labelled pixels in either frame keeps its mean flow (and covariance).
+
+    Returns
+    -------
+    velocities : ndarray, shape (K, 3)
+    covariances : ndarray, shape (K, 3, 3) or None
+        None without ``velocity_covs``.
+
+    Examples
+    --------
+    A plate 1 m away slides along x at 0.1 m/s (10 px per frame at fx = 100), its flow exact.
+    Unhidden, its visible centroid moves with it; with a nearer wall covering x > 0.12 m the plate's
+    leading columns vanish, its visible centroid slows down, and the gap to the flow widens the
+    covariance along x:
+
+    >>> import numpy as np
+    >>> from flowtrack.camera import PinholeCamera
+    >>> cam = PinholeCamera(fx=100.0, fy=100.0, cx=29.5, cy=19.5, width=60, height=40)
+    >>> def frame(x0, wall):
+    ...     X = (np.arange(60) - 29.5) / 100.0                     # x of each column at 1 m
+    ...     on = (X > x0) & (X < x0 + 0.2)
+    ...     d = np.where(on, 1.0, 2.0)[None, :].repeat(40, axis=0)
+    ...     return np.where((X > 0.12)[None, :] & wall, 0.5, d)   # the wall, 0.5 m away
+    >>> d0 = frame(-0.2, False)
+    >>> P = cloud_from_depth(d0, cam)
+    >>> piece = np.flatnonzero(np.isclose(P[:, 2], 1.0))
+    >>> flow = np.zeros_like(P)
+    >>> flow[piece] = [0.1, 0.0, 0.0]
+    >>> u, _ = visible_centroid_velocities(P, [piece], flow, d0, frame(-0.1, False), cam, 1.0)
+    >>> np.round(u, 6).tolist()
+    [[0.1, 0.0, 0.0]]
+    >>> d0 = frame(-0.05, True)
+    >>> P = cloud_from_depth(d0, cam)
+    >>> piece = np.flatnonzero(np.isclose(P[:, 2], 1.0))
+    >>> flow = np.zeros_like(P)
+    >>> flow[piece] = [0.1, 0.0, 0.0]
+    >>> u, C = visible_centroid_velocities(P, [piece], flow, d0, frame(0.05, True), cam, 1.0,
+    ...                                    velocity_covs=np.eye(3)[None] * 1e-4, inflation=4.0)
+    >>> (np.round(u, 6) + 0.0).tolist(), np.round(C[0].diagonal(), 6).tolist()
+    ([[0.05, 0.0, 0.0]], [0.0101, 0.0001, 0.0001])
+    """
     from scipy.spatial import cKDTree
 
-    cfg = config if config is not None else PipelineConfig()
-    P = as_array(points, "points", ("N", 3))
-    clusters = as_labels(clusters, "clusters", len(P), min_label=-1)
-    flow = as_array(flow, "flow", (len(P), 3))
-    tree = None
-    if next_points is not None:
-        if dt is None:
-            raise ValueError("dt must be given with next_points")
-        dt = positive(dt, "dt")
-        tree = cKDTree(as_array(next_points, "next_points", ("M", 3)))
-    keep = (clusters >= 0) & ~support_planes(P, cfg)
-    Z, V = [], []
-    for c in np.unique(clusters[keep]):
-        idx = np.flatnonzero(keep & (clusters == c))
-        if len(idx) < cfg.min_detection_points:
-            continue
-        pairs = cKDTree(P[idx]).query_pairs(cfg.cluster_radius, output_type="ndarray")
-        A = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(idx), len(idx)))
-        _, comp = connected_components(A, directed=False)
-        for j in np.unique(comp):
-            piece = idx[comp == j]
-            if len(piece) >= cfg.min_detection_points:
-                if tree is not None:
-                    d_static = np.median(tree.query(P[piece])[0])
-                    d_moving = np.median(tree.query(P[piece] + dt * flow[piece])[0])
-                    if d_static <= d_moving:
-                        continue
-                Z.append(P[piece].mean(axis=0))
-                V.append(flow[piece].mean(axis=0))
-    return np.array(Z).reshape(-1, 3), np.array(V).reshape(-1, 3)
+    X = as_array(points, "points", ("N", 3))
+    V = as_array(flow, "flow", X.shape)
+    dt = positive(dt, "dt")
+    radius = positive(radius, "radius")
+    inflation = nonnegative(inflation, "inflation")
+    min_pixels = positive_int(min_pixels, "min_pixels")
+    D0 = np.asarray(depth_t, dtype=np.float64)
+    D1 = np.asarray(depth_t1, dtype=np.float64)
+    if D0.ndim != 2 or D1.shape != D0.shape:
+        raise ValueError(f"depth_t and depth_t1 must be (H, W) images of one shape, got {D0.shape} and "
+                         f"{D1.shape}")
+    K = len(pieces)
+    lab = np.full(len(X), -1, dtype=np.intp)
+    for k, piece in enumerate(pieces):
+        idx = np.asarray(piece)
+        if idx.ndim != 1 or not np.issubdtype(idx.dtype, np.integer) or (idx.size and (
+                idx.min() < 0 or idx.max() >= len(X))):
+            raise ValueError(f"pieces[{k}] must be a 1-D int array of indices into points "
+                             f"(0 .. {len(X) - 1})")
+        lab[idx] = k
+    Cin = None
+    if velocity_covs is not None:
+        from .motion import check_velocity_covs
+
+        Cin = check_velocity_covs(velocity_covs, K, 3)
+    mean_flow = np.array([V[np.asarray(p)].mean(axis=0) if len(p) else np.full(3, np.nan)
+                          for p in pieces]).reshape(K, 3)
+    U = mean_flow.copy()
+    if K and len(X):
+        B0, B1 = cloud_from_depth(D0, camera), cloud_from_depth(D1, camera)
+        if len(B0) and len(B1):
+            d0, n0 = cKDTree(X).query(B0, workers=-1)
+            d1, n1 = cKDTree(X + dt * V).query(B1, workers=-1)
+            l0 = np.where(d0 <= radius, lab[n0], -1)
+            l1 = np.where(d1 <= radius, lab[n1], -1)
+            n_0 = np.bincount(l0 + 1, minlength=K + 1)[1:]
+            n_1 = np.bincount(l1 + 1, minlength=K + 1)[1:]
+            s0 = np.stack([np.bincount(l0 + 1, weights=B0[:, i], minlength=K + 1)[1:] for i in range(3)], 1)
+            s1 = np.stack([np.bincount(l1 + 1, weights=B1[:, i], minlength=K + 1)[1:] for i in range(3)], 1)
+            ok = (n_0 >= min_pixels) & (n_1 >= min_pixels)
+            U[ok] = (s1[ok] / n_1[ok, None] - s0[ok] / n_0[ok, None]) / dt
+    if Cin is None:
+        return U, None
+    gap = U - mean_flow
+    C = Cin + inflation * gap[:, :, None] * gap[:, None, :]
+    return U, C

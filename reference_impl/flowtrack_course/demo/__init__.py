@@ -22,10 +22,12 @@ Per frame pair :math:`(t, t+1)`:
 3. motion clusters of the RGB-D flow (connected components of the motion graph), the support
    planes removed, one detection per connected piece (:mod:`flowtrack.pipeline`);
 4. one :meth:`~flowtrack.tracking.MultiObjectTracker.step` with the pieces' centroids
-   :math:`\bar X_c` as detections and their mean RGB-D flow :math:`\bar v_c` as velocity
-   measurements (the mean of a rigid motion's flow over a piece is the flow of its centroid,
-   exactly), each with a covariance from its cluster's flow residuals
-   (:func:`flowtrack.motion.detection_velocity_covariances`; ``velocity_update=True``).
+   :math:`\bar X_c` as detections and, as velocity measurements, the velocity of each piece's
+   visible-surface centroid (what a detection measures: its pixels carried into the next depth image
+   by the flow, :func:`flowtrack.pipeline.visible_centroid_velocities`), each with a covariance from
+   its cluster's flow residuals (:func:`flowtrack.motion.detection_velocity_covariances`) widened by
+   the gap between that velocity and the mean flow, the visible-extent change
+   (``velocity_update=True``; :func:`flowtrack_course.demo.run.detection_measurements`).
 
 With ground truth the same detections are also tracked with positions only, and
 ``metrics.json["tracking_ablation"]`` compares the two (MOTA, IDF1, ID switches, prediction error).

@@ -16,10 +16,11 @@ from flowtrack.motion import detection_velocity_covariances
 from flowtrack.pipeline import (
     METHODS,
     RGBD_METHOD,
-    detections_from_clusters,
+    detection_pieces,
     open3d_threads,
     rgbd_cloud_flow,
     scene_flow_and_clusters,
+    visible_centroid_velocities,
 )
 from flowtrack.sceneflow import scene_flow_metrics
 from flowtrack.tracking_io import write_tracks_csv
@@ -39,7 +40,8 @@ from .reproduce import reproduce_command
 from .sections import echo_summary, report_sections
 
 __all__ = [
-    "DemoConfig", "FlowPair", "assign_tracks", "cluster_purity", "json_default", "json_number",
+    "DemoConfig", "FlowPair", "assign_tracks", "cluster_purity", "detection_measurements", "json_default",
+    "json_number",
     "motorcycle_section", "pooled_metrics", "run_demo", "tracking_ablation_section",
 ]
 
@@ -132,6 +134,31 @@ def assign_tracks(tracks: dict[int, np.ndarray], truth: dict[int, np.ndarray], g
     return {ti[i]: oi[j] for i, j in zip(r, c) if C[i, j] <= gate}
 
 
+def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig):
+    """Detections of frame ``t`` with their velocity measurements: ``(Z (K, 3), U (K, 3), C (K, 3, 3))``.
+
+    ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
+    of each piece's visible-surface centroid and ``C`` its covariance, the cluster's flow-residual
+    covariance (:func:`flowtrack.motion.detection_velocity_covariances`, ``min_std =
+    velocity_min_std``) widened by the visible-extent change
+    (:func:`flowtrack.pipeline.visible_centroid_velocities`, ``radius = centroid_radius``, at least the
+    voxel size of a real cloud; ``inflation = extent_change_inflation``). The benchmark
+    (``benchmarks/bench_tracking.py``) builds its detections with this function too.
+    """
+    dt = inp.dt
+    pieces = detection_pieces(X, clusters, flow, cfg, next_points=next_points, dt=dt)
+    Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
+    C = detection_velocity_covariances(X, clusters, flow, Z, dt, min_std=cfg.velocity_min_std)
+    radius = cfg.centroid_radius if inp.scene is not None else max(cfg.centroid_radius, cfg.voxel)
+    depth_t, depth_t1 = inp.depth[t], inp.depth[t + 1]
+    if inp.scene is None:  # the real cloud drops points beyond max_depth: so do its pixels
+        depth_t = np.where(depth_t <= cfg.max_depth, depth_t, 0.0)
+        depth_t1 = np.where(depth_t1 <= cfg.max_depth, depth_t1, 0.0)
+    U, C = visible_centroid_velocities(X, pieces, flow, depth_t, depth_t1, inp.camera, dt, radius=radius,
+                                       velocity_covs=C, inflation=cfg.extent_change_inflation)
+    return Z, U, C
+
+
 @open3d_threads(1)
 def run_demo(
     out: Path | str = "out",
@@ -156,10 +183,10 @@ def run_demo(
 
     The scene flow that clustering and the tracker use is the dense variational RGB-D flow of each
     frame pair (:func:`flowtrack.pipeline.rgbd_cloud_flow`), for the synthetic scene and for real
-    input alike. Each detection carries its piece's mean RGB-D velocity (the velocity of the
-    centroid under the cluster's rigid motion) and a velocity covariance from the cluster's flow
-    residuals (:func:`flowtrack.motion.detection_velocity_covariances`); the tracker updates with
-    position and velocity (``velocity_update=True``, constant-velocity model).
+    input alike. Each detection carries the velocity of its visible-surface centroid and a velocity
+    covariance from the cluster's flow residuals widened by the visible-extent change
+    (:func:`detection_measurements`); the tracker updates with position and velocity
+    (``velocity_update=True``, constant-velocity model).
 
     ``tracks.csv`` (:func:`flowtrack.tracking_io.write_tracks_csv`) holds every live track of every
     processed frame t = 0 … n−2 (tentative and coasting included; the last frame has no flow pair),
@@ -248,8 +275,7 @@ def run_demo(
         pair.flows, pair.clusters, pair.seconds = scene_flow_and_clusters(X, nxt[0], dt, cfg, flow=rgbd)
         pair.seconds[RGBD_METHOD] = t_rgbd
         t0 = time.perf_counter()
-        Z, V = detections_from_clusters(X, pair.clusters, rgbd, cfg, next_points=nxt[0], dt=dt)
-        C = detection_velocity_covariances(X, pair.clusters, rgbd, Z, dt, min_std=cfg.velocity_min_std)
+        Z, V, C = detection_measurements(inp, t, X, pair.clusters, rgbd, nxt[0], cfg)
         pair.seconds["detection"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         reported = tracker.step(Z, V, C)

@@ -104,9 +104,11 @@ def report_sections(inp, summary, figures, real, tud) -> list[Section]:
         "Jacobian, §2–3; flowtrack.sceneflow.rgbd_scene_flow); for comparison nearest neighbour, graph "
         "smoothing (§4), graph smoothing with re-matching and rigid ICP per motion cluster (§8); motion "
         "clustering of the RGB-D flow (Problem 5); one MultiObjectTracker step (§7) with the cluster "
-        "pieces' centroids as detections and their mean RGB-D velocity, with a covariance from the "
-        "cluster's flow residuals, as velocity measurements. Every track of every frame is in "
-        "tracks.csv (frame, track_id, status, x, y, z, vx, vy, vz; camera frame, m and m/s).",
+        "pieces' centroids as detections and, as velocity measurements, the velocity of each piece's "
+        "visible-surface centroid (its pixels carried into the next depth image by the flow) with a "
+        "covariance from the cluster's flow residuals, widened where the visible extent changes. "
+        "Every track of every frame is in tracks.csv (frame, track_id, status, x, y, z, vx, vy, vz; "
+        "camera frame, m and m/s).",
         f"{summary['points_per_cloud']} points per cloud, {summary['detections_per_frame']:.1f} detections "
         f"per frame on average; seconds per frame pair: "
         + ", ".join(f"{k} {v:.3f}" for k, v in summary["seconds_per_pair"].items()) + ".",
