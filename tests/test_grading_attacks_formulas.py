@@ -24,8 +24,10 @@ pytestmark = pytest.mark.xdist_group("sandbox")
 
 EX = get_exercise("ex11_concepts")
 LIMITS = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16)
-RIGHT = "Matrix([[dt**4*q/4, dt**3*q/2, 0, 0], [dt**3*q/2, dt**2*q, 0, 0], " \
-        "[0, 0, dt**4*q/4, dt**3*q/2], [0, 0, dt**3*q/2, dt**2*q]])"
+RIGHT = (
+    "Matrix([[dt**4*q/4, dt**3*q/2, 0, 0], [dt**3*q/2, dt**2*q, 0, 0], "
+    "[0, 0, dt**4*q/4, dt**3*q/2], [0, 0, dt**3*q/2, dt**2*q]])"
+)
 
 ATTACKS = {
     "huge_exponent": "return 'dt**999999999'",
@@ -41,7 +43,8 @@ ATTACKS = {
     "exploding_integer": "return '((((10**12)**24)**24)**24)**24'",
     "not_a_string": "return {'shape': [4, 4], 'values': [[[0.0, 0.0]] * 16] * 6}",
     "bytes": "return b'dt'",
-    "busy_sympy": "return 'exp(exp(exp(exp(24))))*dt'",  # passes the whitelist: the sandbox's time limit ends it
+    # passes the whitelist: the sandbox's time limit ends it
+    "busy_sympy": "return 'exp(exp(exp(exp(24))))*dt'",
 }
 CELL = "\n".join(f"def {name}():\n    {body}\n" for name, body in ATTACKS.items()) + (
     f"def q_order():\n    return {RIGHT!r}\n"
