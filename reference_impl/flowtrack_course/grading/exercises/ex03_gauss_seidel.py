@@ -102,6 +102,12 @@ def _ex03_solve_check(a, b, dt, lam) -> Check:
     )
 
 
+#: The solver tests' sweep budget: red-black Gauss-Seidel reaches tol = 1e-10 on their grids (at most
+#: 8x10, lam <= 5 dt^2: rho(G_GS) <= 0.91) in a few hundred sweeps, Jacobi in under a thousand; a
+#: solver that stagnates (it converges to another system's solution) then stops after seconds, not
+#: after the default 100000 sweeps (tests/test_mistakes.py checks the reference's count).
+_SOLVE_SWEEPS = 5000
+
 _EX03_V0 = np.zeros((3, 4))
 _EX03_RHS = np.arange(12.0).reshape(3, 4)
 _EX03_C = np.full((3, 4), 1.0)
@@ -145,7 +151,7 @@ def _ex03_solve_public(rng):
         (
             "solve_gauss_seidel",
             (_EX03_A, _EX03_B, 0.5, 0.1),
-            {},
+            {"max_sweeps": _SOLVE_SWEEPS},
             _ex03_solve_check(_EX03_A, _EX03_B, 0.5, 0.1),
         )
     ]
@@ -159,7 +165,9 @@ def _ex03_solve_hidden(rng):
         b = a + rng.normal(scale=0.1, size=(H, W))
         dt = float(rng.uniform(0.05, 0.5))
         lam = float(rng.uniform(0.5, 5.0)) * dt**2
-        out.append(("solve_gauss_seidel", (a, b, dt, lam), {}, _ex03_solve_check(a, b, dt, lam)))
+        out.append(
+            ("solve_gauss_seidel", (a, b, dt, lam), {"max_sweeps": _SOLVE_SWEEPS}, _ex03_solve_check(a, b, dt, lam))
+        )
     return out
 
 
