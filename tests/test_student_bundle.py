@@ -247,3 +247,8 @@ def test_exercise_texts_do_not_print_another_exercises_answer():
     ]
     q_kron = re.compile(r"Q\s*=\s*Q_\{1D\}\s*\\otimes\s*I_2\b")
     assert not any(q_kron.search(t) for k, t in text.items() if k != "ex05_cv_model")
+    # ex11's unexcited combinations (p_y - 2 p_x / dt, v_y - 2 v_x / dt) and its Q for [px, vx, py, vy]
+    unexcited = re.compile(r"[pv]_y\s*-\s*2\s*[pv]_x\s*/")
+    assert not any(unexcited.search(t) for t in text.values())
+    other_order = re.compile(r"\[p_x,\s*v_x,\s*p_y,\s*v_y\][^.]*\b(is|=)\s*\$?\\?(operatorname\{)?blkdiag")
+    assert not any(other_order.search(t) for k, t in text.items() if k != "ex11_concepts")
