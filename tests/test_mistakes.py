@@ -237,6 +237,18 @@ return np.linalg.solve(A, (dt * (np.asarray(b) - a)).ravel()).reshape(H, W)
             ),
         )
     )
+    add(
+        (  # an "accelerated" solver: extrapolated sweeps reach the right solution at another rate
+            "residual-rate-not-gauss-seidel",
+            ex,
+            _edit(
+                ex,
+                "solve_gauss_seidel",
+                "v = red_black_sweep(v, rhs, c, lam)",
+                "v = v + 1.5 * (red_black_sweep(v, rhs, c, lam) - v)",
+            ),
+        )
+    )
     # ex04
     ex = "ex04_graph_scene_flow"
     add(("knn-not-symmetrised", ex, _edit(ex, "knn_laplacian", "    A = A | A.T\n", "")))
@@ -877,6 +889,64 @@ def test_public_tests_catch_the_classic_mistakes():
         public = [r for r in _run(ex_id, sources) if not r[3].startswith("hidden test")]
         assert sum(r[2] - r[1] for r in public) > 0, mistake  # a public test fails
         assert mistake in _named(public)
+
+
+def test_gauss_seidel_rate_is_the_square_of_the_jacobi_rate():
+    """The rate the residual-history test expects, against the explicit red-black Gauss-Seidel
+    iteration matrix (scipy eigenvalues) and against the sweeps of flowtrack's reference."""
+    import scipy.linalg
+
+    from flowtrack.variational import red_black_sweep
+    from flowtrack_course.grading.exercises.ex03_gauss_seidel import jacobi_radius, model_matrix
+
+    for H, W, f in ((6, 6, 2.0), (4, 7, 5.0), (1, 9, 1.0)):
+        dt = 0.2
+        A = model_matrix(H, W, dt**2, f * dt**2)
+        i, j = np.indices((H, W))
+        order = np.argsort(((i + j) % 2).ravel(), kind="stable")  # red pixels first, then black
+        P = A[np.ix_(order, order)]
+        G = scipy.linalg.solve(np.tril(P), -np.triu(P, 1))  # (D - L)^-1 U in the red-black order
+        rho_gs = max(abs(scipy.linalg.eigvals(G)))
+        assert rho_gs == pytest.approx(jacobi_radius(A) ** 2, rel=1e-9)
+        # the reference's sweeps shrink the residual by that factor per sweep (b - a = 1)
+        r = np.full((H, W), dt)
+        v, res = np.zeros((H, W)), []
+        for _ in range(12):
+            v = red_black_sweep(v, r, np.full((H, W), dt**2), f * dt**2)
+            res.append(np.linalg.norm(r.ravel() - A @ v.ravel()))
+        assert res[-1] / res[-2] == pytest.approx(rho_gs, rel=1e-3)
+
+
+def test_solver_sweep_budget_is_ample_for_gauss_seidel_and_jacobi():
+    """The solver tests pass max_sweeps (a stagnating solver then stops in seconds): the hardest
+    hidden stratum (8x10, lam = 5 dt^2) needs far fewer red-black or Jacobi sweeps than that."""
+    from flowtrack.variational import red_black_sweep
+    from flowtrack_course.grading.exercises.ex03_gauss_seidel import _SOLVE_SWEEPS, grid_sweep, model_matrix
+
+    rng = np.random.default_rng(3)
+    for dt in (0.05, 0.5):
+        H, W, lam = 8, 10, 5.0 * dt**2
+        A = model_matrix(H, W, dt**2, lam)
+        r = dt * rng.normal(scale=0.1, size=(H, W))
+        c = np.full((H, W), dt**2)
+        for jacobi in (False, True):
+            v, n = np.zeros((H, W)), 0
+            while np.linalg.norm(r.ravel() - A @ v.ravel()) >= 1e-10 * np.linalg.norm(r):
+                v = grid_sweep(v, r, c, lam, jacobi=True) if jacobi else red_black_sweep(v, r, c, lam)
+                n += 1
+                assert n < _SOLVE_SWEEPS / 4
+    assert n > 100  # Jacobi does need hundreds: the budget is not generous by accident
+
+
+def test_residual_history_names_jacobi_and_the_dense_solve():
+    for mistake in ("jacobi-not-gauss-seidel", "dense-solve-not-sweeps", "residual-rate-not-gauss-seidel"):
+        _mid, ex_id, sources = CASES[[m for m, *_ in CASES].index(mistake)]
+        rate = [r for r in _run(ex_id, sources) if "Gauss-Seidel rate" in r[0]]
+        assert len(rate) == 1 and rate[0][1] == 0.0, rate
+        assert mistake in _named(rate), rate
+    right = _run("ex03_gauss_seidel", _solution("ex03_gauss_seidel"))
+    rate = [r for r in right if "Gauss-Seidel rate" in r[0]]
+    assert rate[0][1] == rate[0][2] == 1.0 and not _named(rate)
 
 
 def test_dense_solve_gets_partial_credit_with_the_reason():

@@ -62,12 +62,66 @@ def test_problems_are_posed_and_their_worked_answers_tagged():
     for p in LESSONS:
         nb = read_notebook(p)
         tagged[p.stem] = [c for c in nb.cells if _tagged(c)]
-    for stem in ("01_camera_geometry", "02_variational_scene_flow", "04_bayes_and_kalman"):
+    for stem in (
+        "01_camera_geometry",
+        "02_variational_scene_flow",
+        "04_bayes_and_kalman",
+        "05_multi_object_tracking",
+        "06_flow_to_tracks",
+        "07_five_languages",
+    ):
         assert tagged[stem], stem
-    text1 = (ROOT / "lessons" / "01_camera_geometry.md").read_text(encoding="utf-8")
-    assert "**Problem 1 (syllabus).**" in text1
-    text2 = (ROOT / "lessons" / "02_variational_scene_flow.md").read_text(encoding="utf-8")
-    assert "**Problem 2 (syllabus).**" in text2
+    for k, stem in enumerate(
+        (
+            "01_camera_geometry",
+            "02_variational_scene_flow",
+            "04_bayes_and_kalman",
+            "05_multi_object_tracking",
+            "06_flow_to_tracks",
+        ),
+        start=1,
+    ):
+        text = (ROOT / "lessons" / f"{stem}.md").read_text(encoding="utf-8")
+        assert f"**Problem {k} (syllabus).**" in text, stem
+        # the statement is a visible (untagged) cell of the lesson
+        statement = [
+            c
+            for c in read_notebook(ROOT / "lessons" / f"{stem}.md").cells
+            if f"**Problem {k} (syllabus).**" in c.source
+        ]
+        assert statement and not any(_tagged(c) for c in statement), stem
+
+
+#: Text of each lesson's worked answers that the bundle must not contain (and the course must).
+WITHHELD_TEXT = {
+    "01_camera_geometry": ["J_syllabus"],
+    "04_bayes_and_kalman": ["sp.kronecker_product(Q1d, sp.eye(2))           # Q1d ⊗ I2"],
+    "05_multi_object_tracking": [
+        r"\sum_{j} y_{ij}\le 1",  # Problem 4's constraints
+        "C_def = np.array([[(z - zp) @ np.linalg.inv(Si) @ (z - zp)",  # ex07's cost, written out
+        "def assignment_constraints(M, N):",
+    ],
+    "06_flow_to_tracks": ["Assumptions this rests on", "This lesson's answer, step by step"],
+    "07_five_languages": [
+        "Q_text = sp.kronecker_product(Q1d, sp.eye(2))",  # the derivation of Q for [px, py, vx, vy]
+        "assert Pi * Q_derived * Pi.T == Q_listings",  # blkdiag is right for [px, vx, py, vy]
+        "N_mat = sp.Matrix([[-2 / dt, 1, 0, 0], [0, 0, -2 / dt, 1]])",  # what the listings' Q cannot excite
+        "n_1^\\top x = p_y - 2p_x/\\Delta t",
+    ],
+}
+
+
+def test_worked_answers_of_lessons_5_to_7_are_withheld(bundle):
+    for stem, needles in WITHHELD_TEXT.items():
+        course = (ROOT / "lessons" / f"{stem}.md").read_text(encoding="utf-8")
+        student = json.dumps(nbformat.read(bundle / "lessons" / f"{stem}.ipynb", as_version=4))
+        student_text = "".join(
+            c.source for c in nbformat.read(bundle / "lessons" / f"{stem}.ipynb", as_version=4).cells
+        )
+        for needle in needles:
+            assert needle in course, (stem, needle)
+            assert needle not in student_text, (stem, needle)
+        assert "**Your turn.**" in student, stem
 
 
 @pytest.mark.parametrize("lesson", LESSONS, ids=[p.stem for p in LESSONS])
@@ -109,6 +163,21 @@ def test_release_withholds_worked_answers_and_links_inside_the_bundle(bundle):
     # the worked Jacobian of Problem 1 is printed in the course, not in the bundle's lesson 1
     assert "J_syllabus" in (ROOT / "lessons" / "01_camera_geometry.md").read_text(encoding="utf-8")
     assert "J_syllabus" not in (bundle / "lessons" / "01_camera_geometry.ipynb").read_text(encoding="utf-8")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stem", ["05_multi_object_tracking", "06_flow_to_tracks", "07_five_languages"])
+def test_released_lesson_runs_without_its_worked_answers(bundle, stem, tmp_path, monkeypatch):
+    """The stripped lesson (what students get) runs top to bottom: later cells do not need the
+    withheld ones (lesson 7 reads the ports' vector files, so it is pointed at the course)."""
+    pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    from flowtrack_course.notebooks import execute_notebook
+
+    monkeypatch.setenv("FLOWTRACK_COURSE", str(ROOT))
+    nb = execute_notebook(bundle / "lessons" / f"{stem}.ipynb", timeout=300, cwd=tmp_path)
+    assert not any(_tagged(c) for c in nb.cells)
+    assert any(c.cell_type == "code" and c.get("outputs") for c in nb.cells)
 
 
 def test_student_readmes_say_how_to_install_and_check(bundle):
@@ -178,3 +247,8 @@ def test_exercise_texts_do_not_print_another_exercises_answer():
     ]
     q_kron = re.compile(r"Q\s*=\s*Q_\{1D\}\s*\\otimes\s*I_2\b")
     assert not any(q_kron.search(t) for k, t in text.items() if k != "ex05_cv_model")
+    # ex11's unexcited combinations (p_y - 2 p_x / dt, v_y - 2 v_x / dt) and its Q for [px, vx, py, vy]
+    unexcited = re.compile(r"[pv]_y\s*-\s*2\s*[pv]_x\s*/")
+    assert not any(unexcited.search(t) for t in text.values())
+    other_order = re.compile(r"\[p_x,\s*v_x,\s*p_y,\s*v_y\][^.]*(\bis\b|=)\s*\$?\\?(operatorname\{)?blkdiag")
+    assert not any(other_order.search(t) for k, t in text.items() if k != "ex11_concepts")

@@ -10,6 +10,9 @@ JSON messages; requests on stdin, replies on the file descriptor given as the fi
    namespace and replies ``{"op": "ready", "cell_errors": {grade_id: text}}``.
 2. ``{"op": "calls", "calls": [{"function", "args", "kwargs"}, ...]}``: one reply per call,
    ``{"ok": true, "value": plain data, "printed": text}`` or ``{"ok": false, "error": text}``.
+   A call with ``"post": {"op": "formula", ...}`` has its result (a formula as text) parsed and
+   evaluated here by ``_formula.py`` (shipped next to this file, loaded before any student code):
+   the reply carries numbers at the grader's points, never the text for the grader to parse.
 
 Everything here runs with student code in the same process, so nothing here is trusted by the
 grader: the parent treats each reply as untrusted data.
@@ -263,8 +266,22 @@ def main():
         _serve(init, reply_fd, stdlib_paths)
 
 
+def _load_formula():
+    """``_formula.py`` from this file's folder (None when it is missing), loaded by path."""
+    import importlib.util
+
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "_formula.py")
+    if not os.path.isfile(path):
+        return None
+    spec = importlib.util.spec_from_file_location("_formula", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def _serve(init, reply_fd, stdlib_paths):
     _setup(init)
+    formula = _load_formula()  # before the import guard and any student code
 
     import numpy as np
 
@@ -476,6 +493,11 @@ def _serve(init, reply_fd, stdlib_paths):
                 args = from_wire(call.get("args", []))
                 kwargs = from_wire(call.get("kwargs", {}))
                 value = fn(*args, **kwargs)
+                post = call.get("post")
+                if post is not None:  # a formula: parsed and evaluated here, numbers go back
+                    if formula is None:
+                        raise RuntimeError("the sandbox cannot read formulas (_formula.py is missing)")
+                    value = formula.apply(post, value)
                 reply = {"ok": True, "value": to_plain(value)}
             except MemoryError:
                 reply = {"ok": False, "error": "ran out of memory (MemoryError)"}

@@ -181,12 +181,15 @@ def stub_dir(name: str) -> Path:
 
 @functools.lru_cache(maxsize=1)
 def runner_dir() -> Path:
-    src = (Path(__file__).parent / "_child.py").read_bytes()
-    key = hashlib.sha256(src).hexdigest()[:16]
+    """The folder the sandbox runs its child from: ``_child.py`` and the formula reader it loads
+    (``_formula.py``), keyed by their contents."""
+    files = {name: (Path(__file__).parent / name).read_bytes() for name in ("_child.py", "_formula.py")}
+    key = hashlib.sha256(b"\0".join(files[n] for n in sorted(files))).hexdigest()[:16]
 
     def build(tmp: Path) -> None:
-        (tmp / "_child.py").write_bytes(src)
-        os.chmod(tmp / "_child.py", 0o644)
+        for name, src in files.items():
+            (tmp / name).write_bytes(src)
+            os.chmod(tmp / name, 0o644)
 
     return atomic_dir(cache_root() / "bin" / key, build, prune=True)
 

@@ -824,7 +824,8 @@ class Sandbox:
         timeout = self.limits.wall_seconds if timeout is None else timeout
         if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not timeout > 0:
             raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
-        wire = [{"function": c.function, "args": to_wire(list(c.args)), "kwargs": to_wire(dict(c.kwargs))}
+        wire = [{"function": c.function, "args": to_wire(list(c.args)), "kwargs": to_wire(dict(c.kwargs)),
+                 **({"post": to_wire(dict(c.post))} if c.post is not None else {})}
                 for c in calls]
         self.stdout = ""
         outcomes: list[Outcome] = []

@@ -40,12 +40,16 @@ class Call:
 
     ``args``/``kwargs`` hold plain data or numpy arrays (a bool, integer or float array is sent to
     the child as nested lists with its dtype and shape and rebuilt there as a bool, int64 or float64
-    array, see the sandbox).
+    array, see the sandbox). ``post`` (plain data) asks the child to turn the result into data
+    before it is sent: ``{"op": "formula", "symbols": [...], "points": [[...], ...]}`` parses a
+    formula given as text and evaluates it at the points (:mod:`flowtrack_course.grading._formula`),
+    so that the grader never parses student text.
     """
 
     function: str
     args: tuple[Any, ...] = ()
     kwargs: Mapping[str, Any] = field(default_factory=dict)
+    post: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)

@@ -95,6 +95,14 @@ _ENTRIES = [
         f"is the iteration (a dense solve needs O(N^2) memory on an image); see {_L2} §4",
     ),
     Mistake(
+        "residual-rate-not-gauss-seidel",
+        "ex03_gauss_seidel",
+        "the residual does not shrink at the red-black Gauss-Seidel rate: one sweep multiplies it by "
+        "about rho(G_GS) = rho(G_Jacobi)^2 on the model problem, yours by another factor, so each "
+        "sweep is not one Gauss-Seidel sweep (over- or under-relaxed updates, a sweep counted "
+        f"twice or skipped, pixels updated from stale values); see {_L2} §5",
+    ),
+    Mistake(
         "neumann-boundary-degree",
         "ex03_gauss_seidel",
         "every pixel is given 4 neighbours: with the Neumann boundary a border pixel has 3 and a "

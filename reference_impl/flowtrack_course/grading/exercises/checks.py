@@ -162,11 +162,13 @@ def call_label(function: str, args: Sequence[Any], kwargs: Mapping[str, Any] | N
 
 
 def _calls_and_checks(
-    entries: Sequence[tuple[str, tuple[Any, ...], dict[str, Any], Check]],
+    entries: Sequence[tuple],
 ) -> tuple[list[Call], Scorer]:
-    calls = [Call(fn, args, kw) for fn, args, kw, _ in entries]
-    labels = [call_label(fn, args, kw) for fn, args, kw, _ in entries]
-    return calls, per_call(labels, [c for *_, c in entries], [fn for fn, *_ in entries])
+    """Entries ``(function, args, kwargs, check)``, or ``(..., check, post)`` for a call whose result
+    the sandbox turns into data first (:attr:`~flowtrack_course.grading.spec.Call.post`)."""
+    calls = [Call(e[0], e[1], e[2], e[4] if len(e) > 4 else None) for e in entries]
+    labels = [call_label(e[0], e[1], e[2]) for e in entries]
+    return calls, per_call(labels, [e[3] for e in entries], [e[0] for e in entries])
 
 
 def graded_test(name: str, grade_id: str, points: float, hidden: bool, timeout: float = 10.0):

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..spec import Exercise, Outcome, as_float_array, compare_arrays
+from ..spec import Call, Exercise, GradedTest, Outcome, as_float_array, compare_arrays
 from .checks import Check, array_check, graded_test, pinhole, points_in_front, tuple_check
 from .feedback import Variant
 
@@ -102,6 +102,12 @@ def _ex03_solve_check(a, b, dt, lam) -> Check:
     )
 
 
+#: The solver tests' sweep budget: red-black Gauss-Seidel reaches tol = 1e-10 on their grids (at most
+#: 8x10, lam <= 5 dt^2: rho(G_GS) <= 0.91) in a few hundred sweeps, Jacobi in under a thousand; a
+#: solver that stagnates (it converges to another system's solution) then stops after seconds, not
+#: after the default 100000 sweeps (tests/test_mistakes.py checks the reference's count).
+_SOLVE_SWEEPS = 5000
+
 _EX03_V0 = np.zeros((3, 4))
 _EX03_RHS = np.arange(12.0).reshape(3, 4)
 _EX03_C = np.full((3, 4), 1.0)
@@ -145,7 +151,7 @@ def _ex03_solve_public(rng):
         (
             "solve_gauss_seidel",
             (_EX03_A, _EX03_B, 0.5, 0.1),
-            {},
+            {"max_sweeps": _SOLVE_SWEEPS},
             _ex03_solve_check(_EX03_A, _EX03_B, 0.5, 0.1),
         )
     ]
@@ -159,7 +165,9 @@ def _ex03_solve_hidden(rng):
         b = a + rng.normal(scale=0.1, size=(H, W))
         dt = float(rng.uniform(0.05, 0.5))
         lam = float(rng.uniform(0.5, 5.0)) * dt**2
-        out.append(("solve_gauss_seidel", (a, b, dt, lam), {}, _ex03_solve_check(a, b, dt, lam)))
+        out.append(
+            ("solve_gauss_seidel", (a, b, dt, lam), {"max_sweeps": _SOLVE_SWEEPS}, _ex03_solve_check(a, b, dt, lam))
+        )
     return out
 
 
@@ -174,7 +182,7 @@ def _ex03_iterates_public(rng):
     return out
 
 
-@graded_test("solver: iterates after a few sweeps on random components (tol=0)", "test_iterates", 2.0, hidden=True)
+@graded_test("solver: iterates after a few sweeps on random components (tol=0)", "test_iterates", 1.0, hidden=True)
 def _ex03_iterates_hidden(rng):
     # lam >> dt^2: the iteration converges slowly, so after k sweeps it is far from the solution
     out = []
@@ -188,6 +196,114 @@ def _ex03_iterates_hidden(rng):
     return out
 
 
+# --------------------------------------------------------------------------------------------------
+# the residual history against the theoretical rate
+
+
+def model_matrix(H: int, W: int, c: float, lam: float) -> np.ndarray:
+    """The dense ``(H W, H W)`` matrix ``c I + lam L`` of the exercise's statement (grid-graph
+    Laplacian with the Neumann boundary, pixels numbered row-major), built edge by edge."""
+    n = H * W
+    A = np.diag(np.full(n, float(c)))
+    idx = np.arange(n).reshape(H, W)
+    edges = [(idx[i, j], idx[i + di, j + dj]) for i in range(H) for j in range(W)
+             for di, dj in ((1, 0), (0, 1)) if i + di < H and j + dj < W]
+    for p, q in edges:
+        A[p, p] += lam
+        A[q, q] += lam
+        A[p, q] -= lam
+        A[q, p] -= lam
+    return A
+
+
+def jacobi_radius(A: np.ndarray) -> float:
+    """Spectral radius of the Jacobi iteration matrix ``I - D^-1 A`` (numpy eigenvalues).
+
+    For this matrix (consistently ordered: a red-black colouring exists) Young's theorem gives the
+    red-black Gauss-Seidel radius as its square (tests/test_mistakes.py checks it on the explicit
+    Gauss-Seidel iteration matrix).
+    """
+    G = np.eye(len(A)) - A / np.diag(A)[:, None]
+    return float(np.max(np.abs(np.linalg.eigvals(G))))
+
+
+#: The model problem of the residual-history test: a 6x6 grid, dt = 0.2, lam = 2 dt^2, b - a a smooth
+#: ramp from 1 to 1.5 (the residual is then dominated by the slowest mode from the first sweeps on).
+_RATE_GRID, _RATE_DT, _RATE_LAM, _RATE_SWEEPS = (6, 6), 0.2, 2.0 * 0.2**2, 12
+
+
+def _rate_scorer(a, b, dt, lam, sweeps: int):
+    """Scorer of the calls ``solve_gauss_seidel(a, b, dt, lam, tol=0, max_sweeps=k)``, k = 1..sweeps:
+    the relative residuals ``|r - A v_k| / |r|`` must shrink by rho(G_Jacobi)^2 per sweep
+    (measured over the second half of the history, within 15 % of 1 - rho)."""
+    from .feedback import Report
+
+    H, W = np.shape(a)
+    A = model_matrix(H, W, dt**2, lam)
+    r = dt * (np.asarray(b, float) - np.asarray(a, float)).ravel()
+    rho_j = jacobi_radius(A)
+    rho_gs = rho_j**2
+    tol = 0.15 * (1.0 - rho_gs)
+    half = sweeps // 2
+
+    def scorer(outcomes: Sequence[Outcome]) -> tuple[float, str]:
+        res = []
+        for k, o in enumerate(outcomes, start=1):
+            if not o.ok:
+                msg = f"solve_gauss_seidel(..., tol=0, max_sweeps={k}) failed: {o.error}"
+                return 0.0, Report(msg, msg)
+            v = as_float_array(o.value, (H, W))
+            if v is None or not np.all(np.isfinite(v)):
+                msg = f"max_sweeps={k}: expected a finite array of shape {(H, W)}"
+                return 0.0, Report(msg, msg)
+            res.append(float(np.linalg.norm(r - A @ v.ravel()) / np.linalg.norm(r)))
+        res = np.array(res)
+        shown = ", ".join(f"{x:.3g}" for x in res[:4])
+        if res[0] < 1e-8:
+            msg = (f"the residual is {res[0]:.1e} after one sweep: that is a direct solve, one "
+                   f"red-black sweep leaves about {rho_gs:.2f} of it")
+            return 0.0, Report(msg, msg, ["dense-solve-not-sweeps"])
+        if res[half - 1] <= 0 or res[-1] <= 0:
+            msg = "the residual reaches 0 within a few sweeps: these are not Gauss-Seidel sweeps"
+            return 0.0, Report(msg, msg, ["residual-rate-not-gauss-seidel"])
+        rate = float((res[-1] / res[half - 1]) ** (1.0 / (sweeps - half)))
+        if abs(rate - rho_gs) <= tol:
+            return 1.0, Report("ok")
+        msg = (f"relative residuals after 1, 2, 3, 4 sweeps: {shown}; they shrink by {rate:.3f} per "
+               f"sweep, red-black Gauss-Seidel by rho(G_Jacobi)^2 = {rho_gs:.3f} here "
+               f"(Jacobi: {rho_j:.3f})")
+        ratios = res[half:] / res[half - 1 : -1]
+        geometric = float(ratios.max() - ratios.min()) <= 0.05  # a linear iteration's asymptotic phase
+        if geometric and abs(rate - rho_j) <= tol:
+            mistakes = ["jacobi-not-gauss-seidel"]
+        elif res[-1] <= 0.1 and rate < 1.0 - tol:  # converging to the solution, at another rate
+            mistakes = ["residual-rate-not-gauss-seidel"]
+        else:
+            mistakes = []
+            if rate > 0.95:
+                msg += "; the residual (almost) stops shrinking: the sweeps do not converge to the solution of A v = r"
+        return 0.0, Report(msg, msg, mistakes)
+
+    return scorer
+
+
+def _build_rate(rng):
+    H, W = _RATE_GRID
+    a, b = np.zeros((H, W)), 1.0 + 0.5 * np.indices((H, W))[1] / (W - 1)
+    calls = [Call("solve_gauss_seidel", (a, b, _RATE_DT, _RATE_LAM), {"tol": 0.0, "max_sweeps": k})
+             for k in range(1, _RATE_SWEEPS + 1)]
+    return calls, _rate_scorer(a, b, _RATE_DT, _RATE_LAM, _RATE_SWEEPS)
+
+
+_ex03_rate = GradedTest(
+    name="solver: the residual shrinks at the red-black Gauss-Seidel rate (tol=0, 1 to 12 sweeps)",
+    grade_id="test_iterates",
+    points=1.0,
+    hidden=False,
+    build=_build_rate,
+)
+
+
 EXERCISE = Exercise(
     id="ex03_gauss_seidel",
     title="Red-black Gauss-Seidel for variational scene flow",
@@ -197,6 +313,6 @@ EXERCISE = Exercise(
     allowed=('numpy',),
     tests=(
         _ex03_sweep_public, _ex03_sweep_hidden, _ex03_solve_public, _ex03_solve_hidden,
-        _ex03_iterates_public, _ex03_iterates_hidden,
+        _ex03_iterates_public, _ex03_iterates_hidden, _ex03_rate,
     ),
 )

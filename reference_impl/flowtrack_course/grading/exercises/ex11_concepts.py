@@ -3,8 +3,10 @@
 Six items, each answered by a function in its own answer cell:
 
 1. ``q_order()``: Q for the state order [px, vx, py, vy], a sympy matrix in ``dt`` and ``q`` given as
-   text; graded by sympy equivalence (:mod:`~flowtrack_course.grading.exercises.symbolic_answers` parses it
-   without evaluating code).
+   text; graded by sympy equivalence: the sandboxed child parses the text (an :mod:`ast` whitelist,
+   never ``eval``/``sympify``) and evaluates it at random points (:mod:`flowtrack_course.grading._formula`);
+   the grader compares those numbers with its own expressions' values
+   (:mod:`~flowtrack_course.grading.exercises.symbolic_answers`) and never parses student text.
 2. ``euler_lagrange()``: the left side of the Euler-Lagrange equation of the energy of Problem 2, in
    ``a, b, v, dt, lam`` and ``Lv`` (the Laplacian of v), up to a nonzero constant factor.
 3. ``inverse_depth_jacobian()``: the Jacobian of the inverse-depth projection (f X/Z, f Y/Z, 1/Z).
@@ -21,6 +23,7 @@ Every item has its catalogue of wrong answers (recognised from the answer itself
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -28,7 +31,7 @@ import numpy as np
 from ..spec import Exercise, Outcome, as_float_array
 from .checks import Check, graded_test
 from .feedback import Report, safe_error
-from .symbolic_answers import AnswerError, equivalent, parse_answer, proportional
+from .symbolic_answers import FormulaValues, expected_values, formula_request, sample_points, values_of
 
 # ----------------------------------------------------------------------------------------------
 # symbols and the expected formulas (derived here with sympy)
@@ -185,48 +188,45 @@ def lambda_range(slack: float = 1.10) -> tuple[float, float]:
 # checks
 
 
-def _parse(outcome: Outcome, symbols) -> tuple[Any, Report | None]:
-    if not outcome.ok:
-        err = outcome.error or "the call failed"
-        return None, Report(err, safe_error(err))
-    try:
-        return parse_answer(outcome.value, symbols), None
-    except AnswerError as exc:
-        return None, Report(f"the answer could not be read: {exc}")
-
-
-def symbolic_check(expected, symbols: dict, variants: dict[str, Any], *, up_to_scale: bool = False) -> Check:
-    """The answer (text) parses and is sympy-equivalent to ``expected`` (or proportional to it)."""
+def symbolic_check(
+    expected, names: Sequence[str], variants: dict[str, Any], points: np.ndarray, *, up_to_scale: bool = False
+) -> Check:
+    """The answer (a formula the sandbox evaluated at ``points``) equals ``expected`` there (or is a
+    nonzero constant multiple of it, ``up_to_scale``). The grader never parses the answer's text
+    (:mod:`~flowtrack_course.grading.exercises.symbolic_answers`)."""
     import sympy as sp
 
-    same = proportional if up_to_scale else equivalent
+    want = expected_values(expected, names, points)
+    known = {k: expected_values(v, names, points) for k, v in variants.items()}
+    shape = expected.shape if isinstance(expected, sp.MatrixBase) else ()
+
+    def same(a: FormulaValues, b: FormulaValues) -> bool:
+        return a.proportional(b) is not None if up_to_scale else a.equivalent(b)
 
     def check(outcome: Outcome) -> tuple[float, str]:
-        got, problem = _parse(outcome, symbols)
-        if problem is not None:
-            return 0.0, problem
-        if same(got, expected):
+        if not outcome.ok:
+            err = outcome.error or "the call failed"
+            return 0.0, Report(err, safe_error(err))
+        got = values_of(outcome.value)
+        if got.values is None:
+            return 0.0, Report(f"the answer could not be read: {got.error}")
+        if same(got, want):
             return 1.0, "ok"
-        mistakes = [k for k, v in variants.items() if same(got, v)]
-        shape = expected.shape if isinstance(expected, sp.MatrixBase) else ()
-        got_shape = got.shape if isinstance(got, sp.MatrixBase) else ()
-        if got_shape != shape:
-            msg = f"expected a {'matrix of shape ' + str(shape) if shape else 'scalar expression'}, got " + (
-                f"a matrix of shape {got_shape}" if got_shape else "a scalar expression"
+        mistakes = [k for k, v in known.items() if same(got, v)]
+        if got.shape != tuple(shape):
+            msg = (
+                f"expected a {'matrix of shape ' + str(tuple(shape)) if shape else 'scalar expression'}, got "
+                + (f"a matrix of shape {got.shape}" if got.shape else "a scalar expression")
             )
             return 0.0, Report(msg, msg, mistakes)
         if not mistakes and not up_to_scale:
-            if equivalent(got, -expected):
+            c = got.proportional(want)
+            if c is not None and abs(c + 1) < 1e-9:
                 mistakes = ["generic-sign"]
-            elif shape and proportional_matrix(got, expected):
+            elif shape and c is not None and abs(c - 1) > 1e-9:
                 mistakes = ["generic-scale"]
         if shape:
-            wrong = [
-                f"[{i}, {j}]"
-                for i in range(shape[0])
-                for j in range(shape[1])
-                if not equivalent(got[i, j], expected[i, j])
-            ]
+            wrong = [str(list(ix)) for ix in got.differing_entries(want)]
             msg = f"not equivalent to the expected matrix: entries {', '.join(wrong)} differ"
         else:
             msg = "not equivalent to the expected expression" + (
@@ -237,14 +237,12 @@ def symbolic_check(expected, symbols: dict, variants: dict[str, Any], *, up_to_s
     return check
 
 
-def proportional_matrix(a, b) -> bool:
-    import sympy as sp
-
-    nz = [(x, y) for x, y in zip(a, b) if y != 0]
-    if not nz:
-        return False
-    c = sp.simplify(nz[0][0] / nz[0][1])
-    return bool(c != 1 and c != 0 and not c.free_symbols and equivalent(a, c * b))
+def _formula_entry(function: str, expected, names: str, variants: dict[str, Any], rng, **kw) -> tuple:
+    """A call of ``function()`` whose formula the sandbox evaluates at random points, and its check."""
+    names_ = names.split()
+    points = sample_points(names_, rng)
+    check = symbolic_check(expected, names_, variants, points, **kw)
+    return (function, (), {}, check, formula_request(names_, points))
 
 
 def subspace_check(basis: np.ndarray, variants: dict[str, np.ndarray], tol: float = 1e-6) -> Check:
@@ -335,23 +333,28 @@ def _unexcited_check(dt: float) -> Check:
 
 @graded_test("Q for the state order [px, vx, py, vy] (sympy)", "test_q_order", 2.0, hidden=False)
 def _ex11_q(rng):
-    return [("q_order", (), {}, symbolic_check(q_order_expected(), _syms("dt q"), _q_order_variants()))]
+    return [_formula_entry("q_order", q_order_expected(), "dt q", _q_order_variants(), rng)]
 
 
 @graded_test(
     "Euler-Lagrange equation of the energy (sympy, up to a factor)", "test_euler_lagrange", 2.0, hidden=False
 )
 def _ex11_el(rng):
-    check = symbolic_check(
-        euler_lagrange_expected(), _syms("a b v dt lam Lv"), _el_variants(), up_to_scale=True
-    )
-    return [("euler_lagrange", (), {}, check)]
+    names = "a b v dt lam Lv"
+    return [
+        _formula_entry(
+            "euler_lagrange", euler_lagrange_expected(), names, _el_variants(), rng, up_to_scale=True
+        )
+    ]
 
 
 @graded_test("Jacobian of the inverse-depth projection (sympy)", "test_jacobian", 2.0, hidden=False)
 def _ex11_jac(rng):
-    check = symbolic_check(inverse_depth_jacobian_expected(), _syms("X Y Z f"), _jac_variants())
-    return [("inverse_depth_jacobian", (), {}, check)]
+    return [
+        _formula_entry(
+            "inverse_depth_jacobian", inverse_depth_jacobian_expected(), "X Y Z f", _jac_variants(), rng
+        )
+    ]
 
 
 @graded_test("what the listings' Q cannot excite, dt = 0.1", "test_unexcited", 1.0, hidden=False)

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import _formula
 from ..spec import Call, Exercise, Outcome, public_seed, student_seed
 from ..wire import NotPlainData, as_child_receives, plain_data
 from .feedback import describe_mistakes, mistakes_of, safe_text
@@ -75,7 +76,10 @@ def _call_all(namespace: Mapping[str, Any], calls: Sequence[Call], timeout: floa
                 args = [as_child_receives(a) for a in call.args]
                 kwargs = {k: as_child_receives(v) for k, v in call.kwargs.items()}
                 try:
-                    value = plain_data(fn(*args, **kwargs))
+                    value = fn(*args, **kwargs)
+                    if call.post is not None:  # as the sandboxed child does (see _formula)
+                        value = _formula.apply(json.loads(json.dumps(dict(call.post))), value)
+                    value = plain_data(value)
                     value = json.loads(json.dumps(value, allow_nan=True))
                 except NotPlainData as exc:
                     outcomes.append(Outcome(False, error=str(exc)))

@@ -1,191 +1,127 @@
-"""Symbolic answers: a student's formula, as text, turned into sympy without evaluating any code.
+"""Symbolic answers, the grader's side: formulas compared through their values, never parsed here.
 
-A conceptual item's answer function returns a string such as ``"Matrix([[dt**4/4*q, ...]])"`` (what
-``str()`` of a sympy object gives). The grader never passes it to ``eval``, ``sympify`` or
-``parse_expr`` (which all evaluate Python): :func:`parse_answer` parses it with :mod:`ast` and
-builds the sympy object node by node from a whitelist (numbers, the item's symbols, ``+ - * / **``,
-``Matrix``/lists and a few functions), with limits on length, size and exponents. Anything else is a
-clear :class:`AnswerError` for the student.
+A conceptual item's answer function returns a formula as text. The grader does not read that text:
+the call carries a ``post`` request (:func:`formula_request`) and the sandboxed child parses the
+text with the :mod:`ast` whitelist and evaluates it with sympy at the grader's points
+(:mod:`flowtrack_course.grading._formula`), sending back only numbers. The grader evaluates its own,
+trusted, expressions (the right answer and the catalogued wrong ones) at the same points and
+compares (:func:`FormulaValues`): sympy equivalence by identity testing at random points (two
+rational functions that agree at random real points within 1e-9 are equal, with probability 1).
 
-:func:`equivalent` decides sympy equivalence: numerically at random positive points first (fast,
-catches most differences), then ``sympy.simplify`` of the difference.
+Nothing here calls ``eval``, ``sympify`` or ``parse_expr`` on student text; student data arrives as
+JSON and is read with :func:`values_of` (shapes and types checked) into numpy arrays.
 
 Examples
 --------
->>> import sympy as sp
+>>> import numpy as np, sympy as sp
+>>> points = sample_points(["dt", "q"], np.random.default_rng(0))
 >>> dt, q = sp.symbols("dt q", positive=True)
->>> M = parse_answer("Matrix([[dt**4/4*q, q*dt**3/2]])", {"dt": dt, "q": q})
->>> equivalent(M, sp.Matrix([[q * dt**4 / 4, q * dt**3 / 2]]))
-True
->>> parse_answer("__import__('os')", {"dt": dt})
-Traceback (most recent call last):
-...
-flowtrack_course.grading.exercises.symbolic_answers.AnswerError: only the names dt and Matrix, sqrt, exp, log, sin, cos, Rational, pi may be used, not __import__
+>>> right = expected_values(sp.Matrix([[q * dt**4 / 4, q * dt**3 / 2]]), ["dt", "q"], points)
+>>> from flowtrack_course.grading._formula import apply
+>>> got = values_of(apply(formula_request(["dt", "q"], points), "Matrix([[dt**4/4*q, q*dt**3/2]])"))
+>>> got.equivalent(right), got.equivalent(right.scaled(-1))
+(True, False)
+>>> print(values_of(apply(formula_request(["dt"], points[:, :1]), "__import__('os')")).error)
+only the names dt and Matrix, sqrt, exp, log, sin, cos, Rational, pi may be used, not __import__
 """
 
 from __future__ import annotations
 
-import ast
-from collections.abc import Mapping
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["AnswerError", "equivalent", "parse_answer", "proportional"]
+import numpy as np
 
-MAX_CHARS = 4000
-MAX_NODES = 3000
-MAX_EXPONENT = 24
+__all__ = ["FormulaValues", "expected_values", "formula_request", "sample_points", "values_of"]
 
-
-class AnswerError(ValueError):
-    """The answer text is not a formula the grader accepts (the message says why)."""
+N_POINTS = 6
 
 
-def _functions():
-    import sympy as sp
-
-    return {
-        "Matrix": None,  # handled separately
-        "sqrt": sp.sqrt,
-        "exp": sp.exp,
-        "log": sp.log,
-        "sin": sp.sin,
-        "cos": sp.cos,
-        "Rational": None,  # handled separately
-        "pi": sp.pi,
-    }
+def sample_points(names: Sequence[str], rng: np.random.Generator, n: int = N_POINTS) -> np.ndarray:
+    """``n`` random points, one positive value in [0.3, 2] per symbol (shape ``(n, len(names))``)."""
+    return rng.uniform(0.3, 2.0, size=(n, len(names)))
 
 
-def parse_answer(text: Any, symbols: Mapping[str, Any]) -> Any:
-    """Parse ``text`` into a sympy expression or Matrix using only ``symbols`` and the whitelist."""
-    import sympy as sp
-
-    if not isinstance(text, str):
-        raise AnswerError(f"the answer must be a string (a formula), got {type(text).__name__}")
-    if len(text) > MAX_CHARS:
-        raise AnswerError(f"the answer is longer than {MAX_CHARS} characters")
-    try:
-        tree = ast.parse(text.strip().replace("^", "**"), mode="eval")
-    except SyntaxError as exc:
-        raise AnswerError(f"the formula does not parse: {exc.msg}") from None
-    if sum(1 for _ in ast.walk(tree)) > MAX_NODES:
-        raise AnswerError("the formula is too large")
-    funcs = _functions()
-    allowed = ", ".join(symbols) + " and " + ", ".join(funcs)
-
-    def conv(node: ast.AST) -> Any:
-        if isinstance(node, ast.Expression):
-            return conv(node.body)
-        if isinstance(node, ast.Constant) and type(node.value) in (int, float):
-            if type(node.value) is int:
-                if abs(node.value) > 10**12:
-                    raise AnswerError("a number in the formula is too large")
-                return sp.Integer(node.value)
-            return sp.Float(node.value)
-        if isinstance(node, ast.Name):
-            if node.id in symbols:
-                return symbols[node.id]
-            if node.id == "pi":
-                return sp.pi
-            raise AnswerError(f"only the names {allowed} may be used, not {node.id}")
-        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
-            v = conv(node.operand)
-            return -v if isinstance(node.op, ast.USub) else v
-        if isinstance(node, ast.BinOp) and isinstance(
-            node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)
-        ):
-            left, right = conv(node.left), conv(node.right)
-            if isinstance(node.op, ast.Add):
-                return left + right
-            if isinstance(node.op, ast.Sub):
-                return left - right
-            if isinstance(node.op, ast.Mult):
-                return left * right
-            if isinstance(node.op, ast.Div):
-                if right == 0:
-                    raise AnswerError("division by zero in the formula")
-                return left / right
-            if not (isinstance(right, sp.Expr) and right.is_number and abs(float(right)) <= MAX_EXPONENT):
-                raise AnswerError(f"exponents must be numbers of size at most {MAX_EXPONENT}")
-            return left**right
-        if isinstance(node, (ast.List, ast.Tuple)):
-            return [conv(e) for e in node.elts]
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and not node.keywords:
-            name = node.func.id
-            if name not in funcs:
-                raise AnswerError(f"only the names {allowed} may be used, not {name}")
-            args = [conv(a) for a in node.args]
-            if name == "Matrix" and len(args) == 1 and isinstance(args[0], list):
-                rows = args[0]
-                try:
-                    return sp.Matrix(rows)
-                except Exception:
-                    raise AnswerError("Matrix(...) needs a list of rows of equal length") from None
-            if name == "Rational" and len(args) == 2 and all(isinstance(a, sp.Integer) for a in args):
-                return sp.Rational(args[0], args[1])
-            fn = funcs.get(name)
-            if callable(fn) and len(args) == 1 and isinstance(args[0], sp.Expr):
-                return fn(args[0])
-            raise AnswerError(f"{name}(...) is not allowed here (or has the wrong arguments)")
-        raise AnswerError(f"{type(node).__name__} is not allowed in a formula: use numbers, {allowed}")
-
-    out = conv(tree)
-    if isinstance(out, list):
-        raise AnswerError("a list is not a formula: write Matrix([[...], [...]]) for a matrix")
-    return out
+def formula_request(names: Sequence[str], points: np.ndarray) -> dict:
+    """The ``post`` request of a call whose result is a formula in ``names`` (see ``_formula``)."""
+    return {"op": "formula", "symbols": list(names), "points": np.asarray(points, float).tolist()}
 
 
-def _points(symbols, n: int, seed: int = 0):
-    import numpy as np
+@dataclass(frozen=True)
+class FormulaValues:
+    """A formula's values at the points: ``values`` of shape ``(n_points, *shape)``, complex;
+    ``error`` when the sandbox could not read the formula (then ``values`` is None)."""
 
-    rng = np.random.default_rng(seed)
-    return [{s: float(rng.uniform(0.3, 2.0)) for s in symbols} for _ in range(n)]
+    shape: tuple[int, ...]
+    values: np.ndarray | None
+    error: str = ""
+
+    def _close(self, a: np.ndarray, b: np.ndarray, rtol: float) -> np.ndarray:
+        scale = 1e-12 * (1.0 + float(np.nanmax(np.abs(b), initial=0.0)))
+        return np.isfinite(a) & np.isfinite(b) & (np.abs(a - b) <= rtol * np.abs(b) + scale)
+
+    def equivalent(self, other: FormulaValues, rtol: float = 1e-9) -> bool:
+        """Equal at every point (same shape)."""
+        if self.values is None or other.values is None or self.shape != other.shape:
+            return False
+        return bool(np.all(self._close(self.values, other.values, rtol)))
+
+    def differing_entries(self, other: FormulaValues, rtol: float = 1e-9) -> list[tuple[int, ...]]:
+        """Indices of the entries that differ from ``other``'s at some point (same shape)."""
+        ok = self._close(self.values, other.values, rtol).all(axis=0)
+        return [tuple(int(i) for i in ix) for ix in np.argwhere(~ok)]
+
+    def scaled(self, c: complex) -> FormulaValues:
+        return FormulaValues(self.shape, None if self.values is None else self.values * c)
+
+    def proportional(self, other: FormulaValues, rtol: float = 1e-9) -> complex | None:
+        """The constant ``c`` with ``self = c * other`` at every point (nonzero), else None."""
+        if self.values is None or other.values is None or self.shape != other.shape:
+            return None
+        a, b = self.values.ravel(), other.values.ravel()
+        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+            return None
+        big = np.abs(b) > 1e-12 * (1.0 + np.abs(b).max())
+        if not big.any():
+            return None
+        c = complex(np.median((a[big] / b[big]).real) + 1j * np.median((a[big] / b[big]).imag))
+        if abs(c) < 1e-12 or not self.equivalent(other.scaled(c), rtol):
+            return None
+        return c
 
 
-def _numeric(expr, point) -> Any:
-    import numpy as np
-    import sympy as sp
-
-    val = expr.subs(point).evalf() if hasattr(expr, "subs") else expr
-    if isinstance(val, sp.MatrixBase):
-        return np.array(val.tolist(), dtype=complex)
-    return np.array(complex(val))
-
-
-def _shape(x):
-    import sympy as sp
-
-    return x.shape if isinstance(x, sp.MatrixBase) else ()
-
-
-def equivalent(a: Any, b: Any, rtol: float = 1e-9) -> bool:
-    """``a`` and ``b`` (expressions or matrices of the same shape) are equal as functions."""
-    import numpy as np
-    import sympy as sp
-
-    if _shape(a) != _shape(b):
-        return False
-    syms = sorted((getattr(a, "free_symbols", set()) | getattr(b, "free_symbols", set())), key=str)
-    try:
-        for p in _points(syms, 4):
-            x, y = _numeric(a, p), _numeric(b, p)
-            if not np.allclose(x, y, rtol=rtol, atol=1e-12 * (1 + np.abs(y).max())):
-                return False
-        diff = sp.simplify(a - b)
-    except Exception:
-        return False
-    if isinstance(diff, sp.MatrixBase):
-        return all(sp.simplify(e) == 0 for e in diff)
-    return diff == 0
+def values_of(data: Any) -> FormulaValues:
+    """Read what the sandbox sent for a formula (plain JSON data, untrusted) into a
+    :class:`FormulaValues`; anything malformed becomes an ``error``."""
+    if type(data) is dict and type(data.get("error")) is str:
+        return FormulaValues((), None, data["error"][:500])
+    bad = FormulaValues((), None, "the sandbox did not return the formula's values")
+    if type(data) is not dict or type(data.get("shape")) is not list or type(data.get("values")) is not list:
+        return bad
+    shape = data["shape"]
+    if len(shape) > 2 or not all(type(s) is int and 0 < s <= 64 for s in shape):
+        return bad
+    size = int(np.prod(shape)) if shape else 1
+    rows = data["values"]
+    if not rows or len(rows) > 64:
+        return bad
+    out = np.empty((len(rows), size), dtype=complex)
+    for i, row in enumerate(rows):
+        if type(row) is not list or len(row) != size:
+            return bad
+        for j, pair in enumerate(row):
+            if type(pair) is not list or len(pair) != 2 or not all(type(x) in (int, float) for x in pair):
+                return bad
+            out[i, j] = complex(float(pair[0]), float(pair[1]))
+    return FormulaValues(tuple(shape), out.reshape((len(rows), *shape)))
 
 
-def proportional(a: Any, b: Any) -> bool:
-    """``a = c b`` for a nonzero constant ``c`` (an equation's left side, up to its scale)."""
-    import sympy as sp
+def expected_values(expr: Any, names: Sequence[str], points: np.ndarray) -> FormulaValues:
+    """The values of a trusted sympy expression or Matrix (in symbols named ``names``) at ``points``."""
+    from .._formula import evaluate, symbols_named
 
-    if _shape(a) != () or _shape(b) != () or b == 0:
-        return False
-    try:
-        ratio = sp.simplify(a / b)
-    except Exception:
-        return False
-    return bool(ratio != 0 and not ratio.free_symbols and ratio.is_finite)
+    symbols = symbols_named(names)
+    by_name = {s.name: s for s in getattr(expr, "free_symbols", set())}
+    expr = expr.xreplace({by_name[n]: symbols[n] for n in names if n in by_name})
+    return values_of(evaluate(expr, symbols, np.asarray(points, float).tolist()))
