@@ -63,7 +63,8 @@ it at a failing stub to run as Gradescope does).
 Zygotes (:class:`SandboxPool`, what ``flowtrack grade`` uses): starting a sandboxed interpreter and
 numpy costs ~0.3 s, more than most exercises take. A pool keeps one sandbox per kind of exercise
 (:attr:`Sandbox.key`: the same file system view, limits and hidden paths) whose process, the zygote,
-imported numpy (and the allowlists' modules when nothing in its view is blocked) before any student
+imported numpy and the allowlists' modules of its view (under the children's import rule: nothing
+blocked, nothing outside the allowlist, is ever imported there) before any student
 code existed, and forks a child per exercise that installs that exercise's import guard and audit
 hook and runs its cells: each exercise starts from the same clean state as a fresh sandbox, and
 scores the same. The zygote never reads student data (each child reads its cells and calls from
@@ -254,8 +255,8 @@ class Sandbox:
         Keep the sandboxed process between exercises and fork a child per exercise (:meth:`prepare`,
         :meth:`finish`; see "Zygotes" above). Ignored in the fallback without root.
     preload : sequence of str
-        Modules a zygote imports before forking (those of packages in its view, when nothing there
-        is blocked).
+        Modules a zygote imports before forking (those of packages in its view; what the exercise's
+        child could not import is refused there too).
 
     Attributes
     ----------
@@ -598,8 +599,11 @@ class Sandbox:
         deadline = time.monotonic() + timeout
         try:
             in_view = self._packages or ()
-            preload = [] if self.key[2] else [m for m in self._preload if m.split(".")[0] in in_view]
+            preload = [m for m in self._preload if m.split(".")[0] in in_view]
+            # the zygote preloads under the children's import rule (blocked modules, allowlist); the
+            # exercises sharing it have the same view (Sandbox.key) and hence the same rule there
             self._send({"op": "zygote", "paths": init["paths"], "nproc": nproc_child, "preload": preload,
+                        "blocked": list(self.blocked), "allowed": init.get("allowed"),
                         "control": ctl_fd, "wipe": wipe, "litter": litter}, deadline)
             reply = self._recv(deadline, 1024, timeout, starting=True)
         except _ChildGone:
