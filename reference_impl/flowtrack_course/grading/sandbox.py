@@ -303,6 +303,7 @@ class Sandbox:
         self._nproc_child: int | None = None
         self._preload = tuple(preload)
         self._forks = 0  # exercises the current zygote has served
+        self._inits: dict[tuple, dict] = {}  # the init messages made for the current zygote, by view
         self._init_common(workdir_parent)
 
     def _configure(self, cells, blocked, allowed) -> None:
@@ -529,11 +530,16 @@ class Sandbox:
         if self._child_live:
             return
         timeout = self.limits.wall_seconds if timeout is None else float(timeout)
+        view = (self.blocked, self.allowed)
         if self._proc is None:
             cmd, env, init, workdir = self._command()
             self._launch(cmd, env, init, workdir, timeout)
+            self._inits = {view: init}
+        elif view in self._inits:  # a zygote's next exercise of an allowlist it served already
+            init = self._inits[view]
         else:
-            _, _, init, _ = self._command(launch=False)
+            init = self._inits[view] = self._command(launch=False)[2]
+        init = dict(init)
         init.update(op="init", nproc=self._nproc_child, blocked=list(self.blocked), cells=self.cells)
         self._cpu_used = 0.0
         deadline = time.monotonic() + timeout
@@ -716,8 +722,13 @@ class Sandbox:
         self._next_disk_check = now + _DISK_POLL
         lim = self.limits
         if self._mode == "bwrap":
-            usages = [mount_usage(pid, path) for pid in descendants(self._proc.pid)[1:2]
-                      for path in (_SANDBOX_HOME, "/tmp")]  # bubblewrap's init: the sandbox's root
+            # bubblewrap's init, its only child (read directly: this runs after every batch)
+            bw = self._proc.pid
+            try:
+                init_pid = Path(f"/proc/{bw}/task/{bw}/children").read_text().split()[:1]
+            except OSError:
+                init_pid = []
+            usages = [mount_usage(int(pid), path) for pid in init_pid for path in (_SANDBOX_HOME, "/tmp")]
             if len(usages) < 2 or None in usages:
                 return  # not mounted yet, or already gone; the kernel bounds the bytes anyway
             size = sum(u[0] for u in usages if u is not None)
