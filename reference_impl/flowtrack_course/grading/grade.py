@@ -880,6 +880,10 @@ def grade_class(
         pending = list(tasks)
         for _attempt in range(2):
             ctx = mp.get_context("forkserver" if sys.platform.startswith("linux") else "spawn")
+            if ctx.get_start_method() == "forkserver":
+                # the fork server imports the grader and builds the public tests once, before it
+                # forks the workers (ignored when it already runs)
+                ctx.set_forkserver_preload(["flowtrack_course.grading._warm"])
             broken = []
             with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
                 futures = {pool.submit(_worker, t): t for t in pending}
