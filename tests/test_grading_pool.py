@@ -13,14 +13,15 @@ import re
 from pathlib import Path
 
 import nbformat
+import numpy as np
 import pytest
 
 from flowtrack_course.grading import sandbox as sandbox_mod
 from flowtrack_course.grading.exercises import EXERCISES
-from flowtrack_course.grading.grade import grade_class
+from flowtrack_course.grading.grade import grade_class, run_exercise
 from flowtrack_course.grading.release import release_notebook
-from flowtrack_course.grading.sandbox import Limits, SandboxPool
-from flowtrack_course.grading.spec import Call
+from flowtrack_course.grading.sandbox import Limits, Sandbox, SandboxPool
+from flowtrack_course.grading.spec import Call, Exercise, GradedTest, Outcome, public_seed, student_seed
 from grading_helpers import use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
@@ -196,3 +197,104 @@ def test_a_pool_refuses_to_reuse_across_different_views():
         assert len(pool._boxes) == 2
     finally:
         pool.close()
+
+
+# -- what a zygote preloads ------------------------------------------------------------------------
+
+PRELOAD_PROBE = """
+import sys
+def probe():
+    seen = sorted(m for m in ("sympy", "scipy", "scipy.stats", "scipy.optimize") if m in sys.modules)
+    try:
+        import scipy.stats  # noqa: F401  (it imports scipy.optimize, which is blocked)
+        stats = "imported"
+    except ImportError:
+        stats = "refused"
+    return [seen, stats]
+"""
+
+
+@pytest.mark.parametrize("mode", ["bwrap", "setpriv", "fallback"])
+def test_a_zygote_preloads_only_what_its_children_may_import(mode, monkeypatch, tmp_path_factory):
+    """A view with a blocked module (scipy.optimize) still gets its allowlist preloaded, under the
+    children's import rule: scipy.stats, which needs scipy.optimize, is not preloaded (without the
+    rule the setpriv and fallback zygotes, whose file system shows the real scipy.optimize, would
+    hold it), and the child finds what a fresh sandbox finds."""
+    use_sandbox_mode(mode, monkeypatch, tmp_path_factory)
+    limits = Limits(cpu_seconds=10, wall_seconds=30, memory_bytes=1 << 30, processes=16)
+    spec = {"blocked": ("scipy.optimize",), "allowed": ("numpy", "scipy", "sympy"), "limits": limits}
+    with Sandbox([("p", PRELOAD_PROBE)], **spec) as fresh:
+        (alone,) = fresh.run([Call("probe")], timeout=60)
+    with SandboxPool(("scipy", "scipy.stats", "sympy")) as pool:
+        with pool([("p", PRELOAD_PROBE)], **spec) as box:
+            (pooled,) = box.run([Call("probe")], timeout=60)
+        zygote = bool(pool._boxes)
+    assert alone.ok and alone.value == [[], "refused"], alone
+    assert pooled.ok and pooled.value[1] == "refused", pooled
+    if zygote:  # (the fallback as an ordinary user has none)
+        assert pooled.value[0] == ["scipy", "sympy"], pooled
+
+
+# -- public tests built once, each distinct answer scored once ---------------------------------------
+
+
+def _memo_exercise(counts: dict, scored: list) -> Exercise:
+    def make(kind):
+        def build(rng):
+            counts[kind] += 1
+            x = float(rng.uniform())  # the test's input, from its seed
+
+            def scorer(outcomes):
+                scored.append(kind)
+                got = outcomes[0].value
+                return (1.0 if got == round(x, 3) else 0.0), f"{kind}: got {got!r}"
+
+            return [Call("f", (x,))], scorer
+
+        return build
+
+    tests = (GradedTest("pub", "t_pub", 1.0, False, make("public")),
+             GradedTest("hid", "t_hid", 2.0, True, make("hidden")))
+    return Exercise("memo_ex", "memo", "memo.ipynb", ("answer",), (), tests)
+
+
+class _Rounding:
+    """Sandbox stand-in: a student's answer cell ``DIGITS = n`` answers ``f(x)`` with ``round(x, n)``."""
+
+    def __init__(self, cells, **kwargs):
+        self.digits = int(cells[0][1].split("=")[1])
+        self.isolation = "stand-in"
+        self.cell_errors: dict[str, str] = {}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def run(self, calls, timeout):
+        return [Outcome(True, round(c.args[0], self.digits)) for c in calls]
+
+
+def test_public_tests_are_built_once_and_each_distinct_answer_scored_once(tmp_path):
+    counts, scored = {"public": 0, "hidden": 0}, []
+    ex = _memo_exercise(counts, scored)
+    digits = {"ann": 3, "bob": 3, "cyd": 2, "dan": 3, "eve": 1}
+    results = {}
+    for s, d in digits.items():
+        nb = {"nbformat": 4, "nbformat_minor": 5, "metadata": {}, "cells": [
+            {"cell_type": "code", "execution_count": None, "outputs": [], "source": f"DIGITS = {d}\n",
+             "metadata": {"nbgrader": {"grade_id": "answer", "solution": True}}}]}
+        path = tmp_path / s / "memo.ipynb"
+        path.parent.mkdir()
+        path.write_text(json.dumps(nb))
+        results[s] = run_exercise(ex, path, s, sandbox_factory=_Rounding)
+    assert counts == {"public": 1, "hidden": len(digits)}
+    assert scored.count("public") == 3 and scored.count("hidden") == len(digits)  # 3, 2 and 1 digits
+    # each student's public result is what scoring them alone gives (the input drawn here, the oracle)
+    x = float(np.random.default_rng(public_seed("memo_ex", "pub")).uniform())
+    for s, d in digits.items():
+        pub, hid = results[s].tests
+        assert (pub.score, pub.message) == ((1.0 if d == 3 else 0.0), f"public: got {round(x, d)!r}"), s
+        xs = float(np.random.default_rng(student_seed(s, "memo_ex", "hid")).uniform())
+        assert hid.score == (2.0 if round(xs, d) == round(xs, 3) else 0.0), s

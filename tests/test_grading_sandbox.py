@@ -426,3 +426,29 @@ def test_sandbox_starts_mark_their_copies_used_and_survive_a_prune(mode, private
         out = sb.run(calls, timeout=30)[0]
     assert out.ok and out.value == "camera.py", out
     assert copies() == [current]
+
+
+@pytest.mark.parametrize(
+    "allowed", [("numpy",), ("numpy", "scipy.linalg"), ("numpy", "sympy", "flowtrack.kalman")]
+)
+def test_package_entries_match_every_file_resolved(allowed):
+    """The sandbox's view of an allowlist: every entry of site-packages holding a file of the
+    allowed packages' distributions (the oracle resolves each file of each distribution)."""
+    import importlib.metadata as md
+
+    from flowtrack_course.grading.runtime import allowed_packages, package_entries, site_dirs
+
+    packages = allowed_packages(allowed)
+    by_top = md.packages_distributions()
+    for site in site_dirs():
+        root = Path(site).resolve()
+        want = {p for top in packages for p in (top, f"{top}.py") if (root / p).exists()}
+        for dist in {d for top in packages for d in by_top.get(top, [])}:
+            d = md.distribution(dist)
+            for f in d.files or ():
+                p = Path(d.locate_file(f)).resolve()
+                if p.is_relative_to(root) and p != root:
+                    first = p.relative_to(root).parts[0]
+                    if not first.endswith((".dist-info", ".egg-info")) and first != "__pycache__":
+                        want.add(first)
+        assert package_entries(site, packages) == sorted(n for n in want if (root / n).exists())

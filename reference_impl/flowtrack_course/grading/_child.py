@@ -83,6 +83,38 @@ class _Capped:
         return text[:_MAX_TEXT]
 
 
+def _import_rule(blocked, allowed, allowed_text, stdlib_paths):
+    """``refuse(name)``: raise ImportError when module ``name`` is a ``blocked`` module or inside one,
+    or (with an ``allowed`` list of top-level packages) in a package that is neither in the standard
+    library nor allowed. The child's rule, and the zygote's while it preloads (so a zygote never
+    imports what the exercises' children could not)."""
+    blocked = tuple(blocked)
+    allowed = None if allowed is None else frozenset([*allowed, "__main__"]) | sys.stdlib_module_names
+    stdlib_found = {}
+
+    def in_stdlib(top):
+        """True for a module of the standard library's folders (``_sysconfigdata_*`` is not listed in
+        ``sys.stdlib_module_names``)."""
+        if top not in stdlib_found:
+            from importlib.machinery import PathFinder
+
+            stdlib_found[top] = PathFinder.find_spec(top, stdlib_paths) is not None
+        return stdlib_found[top]
+
+    def refuse(name):
+        for b in blocked:
+            if name == b or name.startswith(b + "."):
+                raise ImportError(f"{b} is not available in this exercise")
+        top = name.partition(".")[0]
+        if allowed is not None and top not in allowed and not in_stdlib(top):
+            raise ImportError(
+                f"{top} is not available in this exercise (you may import: {allowed_text}, "
+                "and the standard library)"
+            )
+
+    return refuse
+
+
 _CLEAN_EXIT = 165  # an exercise's child that received "end" (the zygote then cleans and goes on)
 
 
@@ -181,11 +213,25 @@ def _zygote(msg, reply_fd, stdlib_paths):
     _setup(msg)
     import numpy  # noqa: F401  - the point: forked children start with it imported
 
+    # Preloading follows the children's import rule (the blocked modules of this sandbox's view and
+    # its allowlist): whatever a preloaded module would import that an exercise's child may not is
+    # refused here too (as in a fresh sandbox, where the child's guard refuses it), so nothing
+    # blocked ever sits in a zygote's memory.
+    refuse = _import_rule(msg.get("blocked", ()), msg.get("allowed"), "", stdlib_paths)
+
+    class _PreloadGuard:
+        @staticmethod
+        def find_spec(name, path=None, target=None):
+            refuse(name)
+            return None
+
+    sys.meta_path.insert(0, _PreloadGuard)
     for name in msg.get("preload", ()):
         try:
             __import__(name)
         except Exception:
             pass
+    sys.meta_path.remove(_PreloadGuard)
     try:
         ctypes.CDLL(None, use_errno=True).prctl(4, 0, 0, 0, 0)  # PR_SET_DUMPABLE = 0
     except Exception:
@@ -340,33 +386,7 @@ def _serve(init, reply_fd, stdlib_paths):
         return x
 
     blocked = tuple(init.get("blocked", ()))
-    allowed = init.get("allowed")
-    allowed = None if allowed is None else frozenset([*allowed, "__main__"]) | sys.stdlib_module_names
-    allowed_text = init.get("allowed_text", "")
-
-    stdlib_found = {}
-
-    def in_stdlib(top):
-        """True for a module of the standard library's folders (``_sysconfigdata_*`` is not listed in
-        ``sys.stdlib_module_names``)."""
-        if top not in stdlib_found:
-            from importlib.machinery import PathFinder
-
-            stdlib_found[top] = PathFinder.find_spec(top, stdlib_paths) is not None
-        return stdlib_found[top]
-
-    def refuse_blocked(name):
-        """Raise ImportError when module ``name`` is a blocked module or inside one, or (with an
-        allowlist) in a package that is neither in the standard library nor allowed."""
-        for b in blocked:
-            if name == b or name.startswith(b + "."):
-                raise ImportError(f"{b} is not available in this exercise")
-        top = name.partition(".")[0]
-        if allowed is not None and top not in allowed and not in_stdlib(top):
-            raise ImportError(
-                f"{top} is not available in this exercise (you may import: {allowed_text}, "
-                "and the standard library)"
-            )
+    refuse_blocked = _import_rule(blocked, init.get("allowed"), init.get("allowed_text", ""), stdlib_paths)
 
     class _Blocker:
         """sys.meta_path entry refusing blocked modules (a second line behind the file system)."""

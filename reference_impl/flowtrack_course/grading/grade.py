@@ -163,6 +163,47 @@ def _score_test(test: GradedTest, outcomes: Sequence[Outcome], scorer) -> tuple[
     return float(test.points) * fraction, message if isinstance(message, str) else str(message)
 
 
+# Public tests (and every test of ``flowtrack check``) draw their inputs from a fixed seed: their
+# calls and reference values are the same for every student, and a scorer is a deterministic
+# function of the outcomes (the contract that makes a student's check and the grade agree). A
+# grading process therefore builds each public test once and scores each distinct set of outcomes
+# once (e.g. the class's correct answers); hidden tests, seeded per student, are never shared.
+_SHARED_MAX = 4096
+_shared_builds: dict[tuple, tuple[list, Any]] = {}
+_shared_scores: dict[tuple, tuple[float, str]] = {}
+
+
+def _built(test: GradedTest, seed: int) -> tuple[list, Any]:
+    """``test.build`` with the public ``seed``, made once per process (a build that raises is not kept)."""
+    key = (test, seed)
+    hit = _shared_builds.get(key)
+    if hit is None:
+        calls, scorer = test.build(np.random.default_rng(seed))
+        hit = (list(calls), scorer)
+        if len(_shared_builds) >= _SHARED_MAX:
+            _shared_builds.clear()
+        _shared_builds[key] = hit
+    return hit
+
+
+def _scored(test: GradedTest, seed: int, outcomes: Sequence[Outcome], scorer) -> tuple[float, str]:
+    """:func:`_score_test` of a shared test, once per distinct ``outcomes`` (compared as exact JSON)."""
+    from .wire import is_plain
+
+    rows = [[o.ok, o.value, o.error] for o in outcomes]
+    if not is_plain(rows):  # e.g. tuples from a test's fake sandbox: JSON would not tell them apart
+        return _score_test(test, outcomes, scorer)
+    data = json.dumps(rows, allow_nan=True)  # exact for plain data (1 and 1.0 and True differ)
+    key = (test, seed, data)
+    hit = _shared_scores.get(key)
+    if hit is None:
+        hit = _score_test(test, outcomes, scorer)
+        if len(_shared_scores) >= _SHARED_MAX:
+            _shared_scores.clear()
+        _shared_scores[key] = hit
+    return hit
+
+
 def _extract(notebook: Path, grade_ids: Sequence[str]) -> tuple[list[tuple[str, str]], list[str]]:
     """The answer cells that can be extracted and a message for each that cannot.
 
@@ -262,12 +303,13 @@ def run_exercise(
         result.isolation = str(getattr(box, "isolation", ""))
         for i in order:
             t = tests[i]
-            if t.hidden and student is not None:
-                seed = student_seed(student, exercise.id, t.name, secret)
-            else:
+            shared = not (t.hidden and student is not None)  # the same inputs for every student
+            if shared:
                 seed = public_seed(exercise.id, t.name)
+            else:
+                seed = student_seed(student, exercise.id, t.name, secret)
             try:
-                calls, scorer = t.build(np.random.default_rng(seed))
+                calls, scorer = _built(t, seed) if shared else t.build(np.random.default_rng(seed))
             except Exception as exc:  # a broken test definition scores 0, run goes on
                 done[i] = _zero(t, f"internal error building the test: {type(exc).__name__}: {exc}")
                 continue
@@ -278,7 +320,10 @@ def run_exercise(
             if len(outcomes) != len(calls):
                 outcomes = [Outcome(False, None, "no result from the sandbox") for _ in calls]
             outcomes = explain_cascade(outcomes, dict(getattr(box, "cell_errors", {}) or {}))
-            score, message = _score_test(t, outcomes, scorer)
+            if shared:
+                score, message = _scored(t, seed, outcomes, scorer)
+            else:
+                score, message = _score_test(t, outcomes, scorer)
             done[i] = TestResult(
                 t.name, t.grade_id, score, float(t.points), t.hidden, _clip_message(message),
                 _clip_message(safe_text(message)), mistakes_of(message),
@@ -863,6 +908,10 @@ def grade_class(
         pending = list(tasks)
         for _attempt in range(2):
             ctx = mp.get_context("forkserver" if sys.platform.startswith("linux") else "spawn")
+            if ctx.get_start_method() == "forkserver":
+                # the fork server imports the grader and builds the public tests once, before it
+                # forks the workers (ignored when it already runs)
+                ctx.set_forkserver_preload(["flowtrack_course.grading._warm"])
             broken = []
             with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
                 futures = {pool.submit(_worker, t): t for t in pending}

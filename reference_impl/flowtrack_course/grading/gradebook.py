@@ -108,6 +108,23 @@ def _alembic_on_path() -> Iterator[None]:
         os.environ["PATH"] = old
 
 
+def _nbgrader_api():
+    """``nbgrader.api``, imported without jsonschema's IRI format checker when jsonschema is not
+    imported yet: its ``rfc3987_syntax`` compiles grammars at import (about 1 s of CPU, half the
+    import), and nothing here validates an IRI."""
+    if "nbgrader.api" in sys.modules or "jsonschema" in sys.modules or "rfc3987_syntax" in sys.modules:
+        import nbgrader.api
+
+        return nbgrader.api
+    sys.modules["rfc3987_syntax"] = None  # type: ignore[assignment]  # an ImportError, which jsonschema skips
+    try:
+        import nbgrader.api
+    finally:
+        if sys.modules.get("rfc3987_syntax", 0) is None:
+            del sys.modules["rfc3987_syntax"]
+    return nbgrader.api
+
+
 def write_gradebook(
     path: str | os.PathLike,
     exercises: Sequence[Exercise],
@@ -123,7 +140,7 @@ def write_gradebook(
     exports 0 for them). ``roster`` (``{student: RosterEntry}``, :func:`.lms.read_roster`) fills the
     students' names and e-mails, so ``nbgrader export`` has them. Returns ``path``.
     """
-    from nbgrader.api import Gradebook
+    Gradebook = _nbgrader_api().Gradebook
     from sqlalchemy import text
 
     if not assignment or not isinstance(assignment, str):
@@ -140,23 +157,27 @@ def write_gradebook(
         with _alembic_on_path(), Gradebook(f"sqlite:///{tmp}") as gb:
             # a temporary file moved into place at the end: no need to sync every commit
             gb.db.execute(text("PRAGMA synchronous=OFF"))
+            # the only writer of a new file: objects need not be re-read after each commit (without
+            # this add_submission re-loads the assignment's notebooks and cells for every student)
+            gb.db.registry().expire_on_commit = False
             gb.add_assignment(assignment)
             for ex in exercises:
                 nb = notebook_name(ex)
                 gb.add_notebook(nb, assignment)
                 for gid, points in grade_cells(ex).items():
                     gb.add_grade_cell(gid, nb, assignment, max_score=points, cell_type="code")
+            ex_of = {notebook_name(ex): ex.id for ex in exercises}
             for student in students:
                 gb.add_student(student, **_roster_fields(roster, student))  # issue 18 hook
                 scores = _cell_scores(Path(out) / student / "results.json")
                 if scores is None:
                     continue
-                gb.add_submission(assignment, student)
-                for ex in exercises:
-                    for gid in grade_cells(ex):
-                        grade = gb.find_grade(gid, notebook_name(ex), assignment, student)
-                        grade.auto_score = scores.get((ex.id, gid), 0.0)
-                gb.db.commit()
+                # the submission's grades as add_submission made them (one per grade cell of each
+                # notebook), filled in place: no query per grade (find_grade)
+                for nb in gb.add_submission(assignment, student).notebooks:
+                    for grade in nb.grades:
+                        grade.auto_score = scores.get((ex_of[nb.name], grade.name), 0.0)
+            gb.db.commit()
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -281,6 +281,13 @@ def _package_entries(site: str, packages: tuple[str, ...], state: tuple[int, ...
     by_top = _distributions(state)
     root = Path(site).resolve()
     names: set[str] = set()
+
+    def add(p: Path) -> None:  # a resolved path: the entry of ``root`` it lies in
+        if p.is_relative_to(root) and p != root:
+            first = p.relative_to(root).parts[0]
+            if not first.endswith((".dist-info", ".egg-info")) and first != "__pycache__":
+                names.add(first)
+
     for top in packages:
         for cand in (top, f"{top}.py"):
             if (root / cand).exists():
@@ -290,13 +297,26 @@ def _package_entries(site: str, packages: tuple[str, ...], state: tuple[int, ...
                 dist = md.distribution(dist_name)
             except md.PackageNotFoundError:
                 continue
+            try:
+                base = Path(dist.locate_file("")).resolve()
+            except (OSError, RuntimeError):
+                continue
+            # A file's entry is the first part of its path below the distribution's folder; only
+            # that entry is resolved (a distribution has thousands of files, a few entries), and
+            # paths leaving the folder ("../") are resolved whole.
+            firsts: set[str] = set()
             for f in dist.files or ():
+                parts = Path(f).parts
+                if parts and parts[0] != ".." and base == root:
+                    firsts.add(parts[0])
+                    continue
                 try:
-                    p = Path(dist.locate_file(f)).resolve()
+                    add(Path(dist.locate_file(f)).resolve())
                 except (OSError, RuntimeError):
                     continue
-                if p.is_relative_to(root) and p != root:
-                    first = p.relative_to(root).parts[0]
-                    if not first.endswith((".dist-info", ".egg-info")) and first != "__pycache__":
-                        names.add(first)
+            for first in firsts:
+                try:
+                    add((root / first).resolve())
+                except (OSError, RuntimeError):
+                    continue
     return tuple(sorted(n for n in names if (root / n).exists()))

@@ -66,7 +66,8 @@ it at a failing stub to run as Gradescope does).
 Zygotes (:class:`SandboxPool`, what ``flowtrack grade`` uses): starting a sandboxed interpreter and
 numpy costs ~0.3 s, more than most exercises take. A pool keeps one sandbox per kind of exercise
 (:attr:`Sandbox.key`: the same file system view, limits and hidden paths) whose process, the zygote,
-imported numpy (and the allowlists' modules when nothing in its view is blocked) before any student
+imported numpy and the allowlists' modules of its view (under the children's import rule: nothing
+blocked, nothing outside the allowlist, is ever imported there) before any student
 code existed, and forks a child per exercise that installs that exercise's import guard and audit
 hook and runs its cells: each exercise starts from the same clean state as a fresh sandbox, and
 scores the same. The zygote never reads student data (each child reads its cells and calls from
@@ -74,7 +75,10 @@ pipes of its own, passed over a control socket), is not dumpable (its children c
 open its memory), and after each child it kills every other process of the sandbox, checks that
 none survived, and empties HOME and ``/tmp``; a child that crashes or exceeds a limit takes the
 zygote down with it, and the next exercise starts a new sandbox. In ``flowtrack grade`` a worker's
-zygotes serve its students one after the other.
+zygotes serve its students one after the other. A child per exercise, not one per student: a fork
+and the clean-up after it cost about 1 to 10 ms of CPU (the more the zygote imported), some 5 % of
+grading a student, and they keep each exercise's import guard, namespace and limits its own (a
+crash, ``sys.exit`` or a monkeypatched numpy in one exercise cannot change another one's score).
 
 Fallback (``isolation == "fallback: <why>"``): when bubblewrap is missing or namespaces are not
 allowed (a student's laptop running ``flowtrack check``), the child is a plain subprocess with the
@@ -261,8 +265,8 @@ class Sandbox:
         Keep the sandboxed process between exercises and fork a child per exercise (:meth:`prepare`,
         :meth:`finish`; see "Zygotes" above). Ignored in the fallback without root.
     preload : sequence of str
-        Modules a zygote imports before forking (those of packages in its view, when nothing there
-        is blocked).
+        Modules a zygote imports before forking (those of packages in its view; what the exercise's
+        child could not import is refused there too).
 
     Attributes
     ----------
@@ -309,6 +313,7 @@ class Sandbox:
         self._nproc_child: int | None = None
         self._preload = tuple(preload)
         self._forks = 0  # exercises the current zygote has served
+        self._inits: dict[tuple, dict] = {}  # the init messages made for the current zygote, by view
         self._init_common(workdir_parent)
 
     def _configure(self, cells, blocked, allowed) -> None:
@@ -538,11 +543,16 @@ class Sandbox:
         if self._child_live:
             return
         timeout = self.limits.wall_seconds if timeout is None else float(timeout)
+        view = (self.blocked, self.allowed)
         if self._proc is None:
             cmd, env, init, workdir = self._command()
             self._launch(cmd, env, init, workdir, timeout)
+            self._inits = {view: init}
+        elif view in self._inits:  # a zygote's next exercise of an allowlist it served already
+            init = self._inits[view]
         else:
-            _, _, init, _ = self._command(launch=False)
+            init = self._inits[view] = self._command(launch=False)[2]
+        init = dict(init)
         init.update(op="init", nproc=self._nproc_child, blocked=list(self.blocked), cells=self.cells)
         self._cpu_used = 0.0
         deadline = time.monotonic() + timeout
@@ -623,8 +633,11 @@ class Sandbox:
         deadline = time.monotonic() + timeout
         try:
             in_view = self._packages or ()
-            preload = [] if self.key[2] else [m for m in self._preload if m.split(".")[0] in in_view]
+            preload = [m for m in self._preload if m.split(".")[0] in in_view]
+            # the zygote preloads under the children's import rule (blocked modules, allowlist); the
+            # exercises sharing it have the same view (Sandbox.key) and hence the same rule there
             self._send({"op": "zygote", "paths": init["paths"], "nproc": nproc_child, "preload": preload,
+                        "blocked": list(self.blocked), "allowed": init.get("allowed"),
                         "control": ctl_fd, "wipe": wipe, "litter": litter}, deadline)
             reply = self._recv(deadline, 1024, timeout, starting=True)
         except _ChildGone:
@@ -737,8 +750,13 @@ class Sandbox:
         self._next_disk_check = now + _DISK_POLL
         lim = self.limits
         if self._mode == "bwrap":
-            usages = [mount_usage(pid, path) for pid in descendants(self._proc.pid)[1:2]
-                      for path in (_SANDBOX_HOME, "/tmp")]  # bubblewrap's init: the sandbox's root
+            # bubblewrap's init, its only child (read directly: this runs after every batch)
+            bw = self._proc.pid
+            try:
+                init_pid = Path(f"/proc/{bw}/task/{bw}/children").read_text().split()[:1]
+            except OSError:
+                init_pid = []
+            usages = [mount_usage(int(pid), path) for pid in init_pid for path in (_SANDBOX_HOME, "/tmp")]
             if len(usages) < 2 or None in usages:
                 return  # not mounted yet, or already gone; the kernel bounds the bytes anyway
             size = sum(u[0] for u in usages if u is not None)
