@@ -55,6 +55,7 @@ JVM_FLAGS = (
     "-XX:TieredStopAtLevel=1",
     "-XX:CICompilerCount=1",
     "-Xshare:auto",
+    "-XX:-UsePerfData",  # no /tmp/hsperfdata_<uid> file (outside bubblewrap /tmp is the machine's)
     "-Djava.awt.headless=true",
 )
 JAVAC_FLAGS = (*(f"-J{f}" for f in JVM_FLAGS), "-encoding", "UTF-8", "-nowarn")
@@ -137,6 +138,13 @@ class Toolchain:
         if self.language == "java":
             return [["javac", *JAVAC_FLAGS, "-cp", JAVA_CLASSPATH, "-d", ".", self.source_name(problem)]]
         return []
+
+    def inproc(self, problem: str) -> dict | None:
+        """The harness the sandboxed child runs in its own process (Mathics3), else None."""
+        if self.language == "mathics":
+            return {"file": "ft_mathics.py", "function": "grade",
+                    "args": [problem, self.source_name(problem)]}
+        return None
 
     def run_command(self, problem: str) -> list[str]:
         if self.language == "cpp":
