@@ -1,7 +1,8 @@
 """Issue 19: answers in other languages outside bubblewrap, and re-grading when the grader's files change.
 
-* setpriv (a Gradescope container: root, no namespaces): the child that compiles and runs a C++ or
-  Octave answer is a fresh unprivileged uid; a solution earns full marks, its stub 0, and a C++
+* setpriv (a Gradescope container: root, no namespaces): the child that compiles and runs a C++,
+  Java or Octave answer (or runs Mathics3 in-process) is a fresh unprivileged uid; a solution earns
+  full marks, its stub 0, and a C++
   global constructor that calls ``system()`` to write into the grader's folders scores 0 and writes
   nothing (only the uid's file permissions stop it: the audit hook never sees a C++ program).
 * fallback (a student's laptop, ``flowtrack check``): the same solutions earn full marks.
@@ -36,7 +37,9 @@ def _grade(tmp_path: Path, ex_id: str, text: str | None = None):
     return r, [t.message for t in r.tests] + r.problems
 
 
-@pytest.mark.parametrize("ex_id", ["cpp_cv_model", "octave_projection_jacobian"])
+@pytest.mark.parametrize(
+    "ex_id", ["cpp_cv_model", "octave_projection_jacobian", "java_kalman_step", "mathics_cv_model"]
+)
 def test_setpriv_solution_full_marks_stub_zero(ex_id, tmp_path, monkeypatch, tmp_path_factory):
     use_sandbox_mode("setpriv", monkeypatch, tmp_path_factory)
     r, messages = _grade(tmp_path / "solution", ex_id)
