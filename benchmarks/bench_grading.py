@@ -174,15 +174,22 @@ def run_accounted(cmd: list[str], **kwargs) -> tuple[float, float, str]:
     return wall, cpu, "rusage of reaped children (undercounts sandboxes)"
 
 
+def bench_items(languages=None) -> list:
+    """The language items of the bar: the four problems every language has (not the C++ assignment)."""
+    from flowtrack_course.grading.languages import LANGUAGE_EXERCISES
+
+    return [ex for ex in LANGUAGE_EXERCISES
+            if ex.problem in PROBLEM_ORDER and (languages is None or ex.language in languages)]
+
+
 def make_language_class(dest: Path, n_students: int, languages=None) -> list[tuple[str, str]]:
-    from flowtrack_course.grading.languages import LANGUAGE_EXERCISES, strip_solutions
+    from flowtrack_course.grading.languages import strip_solutions
 
     students = []
     for s in range(n_students):
         kind = KINDS[s % 3]
         name = f"s{s:03d}_{kind}"
-        items = [ex for ex in LANGUAGE_EXERCISES if languages is None or ex.language in languages]
-        for ex in items:
+        for ex in bench_items(languages):
             text = (ROOT / "exercises" / ex.notebook).read_text()
             if kind == "stub" or (kind == "partial" and PROBLEM_ORDER.index(ex.problem) % 2):
                 text = strip_solutions(text, ex.language)
@@ -200,13 +207,13 @@ def run_direct(subs: Path, students: list[tuple[str, str]], work: Path) -> tuple
     """The peer: build and run every language item of ``students`` without a sandbox."""
     import json
 
-    from flowtrack_course.grading.languages import LANGUAGE_EXERCISES, public_vectors
+    from flowtrack_course.grading.languages import public_vectors
     from flowtrack_course.grading.languages.problems import PROBLEMS
 
     items = 0
     t0 = time.perf_counter()
     for name, _ in students:
-        for ex in LANGUAGE_EXERCISES:
+        for ex in bench_items():
             tc = ex.toolchain
             d = work / name / ex.id
             d.mkdir(parents=True)
@@ -232,11 +239,12 @@ def _grade_cmd(subs: Path, out: Path, jobs: int) -> list[str]:
 
 
 def languages_main(args) -> int:
-    from flowtrack_course.grading.languages import LANGUAGE_EXERCISES, TOOLCHAINS
+    from flowtrack_course.grading.languages import TOOLCHAINS
 
+    bench = bench_items()
     n = args.students or (3 if args.quick else 20)
     jobs = 2
-    for ex in LANGUAGE_EXERCISES:  # warm the per-language caches (grader-made artefacts only)
+    for ex in bench:  # warm the per-language caches (grader-made artefacts only)
         ex.toolchain.blobs(ex.problem)
     langs = list(TOOLCHAINS)
     per_lang = {}
@@ -260,16 +268,16 @@ def languages_main(args) -> int:
             per_lang[lang] = (k * 4, w, c, os.getloadavg()[0])
             print(f"{lang}: {c / (k * 4):.2f} CPU s / item", flush=True)
         peer_wall, peer_items = run_direct(tmp / "subs", students[:1], tmp / "direct")
-    items = n * len(LANGUAGE_EXERCISES)
+    items = n * len(bench)
     per_item, peer_per_item = ft_wall / items, peer_wall / peer_items
-    max_total = sum(ex.max_score for ex in LANGUAGE_EXERCISES)
+    max_total = sum(ex.max_score for ex in bench)
     by_kind = {k: sorted({ft_totals[s] for s, kk in students if kk == k}) for k in KINDS}
     budget = 300 * n / 20
     rows = [
         "## Autograder, answers in other languages (`flowtrack grade`, issue 19)",
         "",
-        f"{n} synthetic students x {len(LANGUAGE_EXERCISES)} language exercises ({', '.join(langs)} x "
-        f"{len(LANGUAGE_EXERCISES) // len(langs)} problems, {max_total:g} points; a third solutions, a "
+        f"{n} synthetic students x {len(bench)} language exercises ({', '.join(langs)} x "
+        f"{len(bench) // len(langs)} problems, {max_total:g} points; a third solutions, a "
         "third stubs, a third partial). `flowtrack grade --jobs 2`: a sandbox per student and exercise "
         "(children of each worker's zygotes), compiling (C++, Java) and running the student's file "
         "against public and hidden inputs; Mathics3 runs in the sandbox's child, forked from a zygote "
@@ -299,7 +307,7 @@ def languages_main(args) -> int:
         "",
         "| target | measured | met |",
         "|---|---:|:---:|",
-        f"| {n} students x {len(LANGUAGE_EXERCISES)} items <= {budget:.0f} s wall | {ft_wall:.1f} s | "
+        f"| {n} students x {len(bench)} items <= {budget:.0f} s wall | {ft_wall:.1f} s | "
         f"{'yes' if ft_wall <= budget else 'no'} |",
         f"| the same work fits 2 idle cores in {budget:.0f} s (CPU s <= {2 * budget:.0f}) | "
         f"{ft_cpu:.1f} CPU s | {'yes' if ft_cpu <= 2 * budget else 'no'} |",

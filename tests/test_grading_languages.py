@@ -9,6 +9,7 @@ named, and a compile error becomes feedback with the compiler's message.
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 from pathlib import Path
@@ -105,6 +106,29 @@ def test_mahalanobis_reference_matches_solve_and_the_gate():
     assert p.reference(p.public()[0])["inside"].tolist() == [1.0, 1.0, 0.0]  # 1, 4, 9.25 vs 9.21
 
 
+def _brute_force_assignment(C: np.ndarray) -> np.ndarray:
+    n, m = C.shape
+    best = min(itertools.permutations(range(m), n), key=lambda cols: sum(C[i, j] for i, j in enumerate(cols)))
+    return np.array(best, dtype=float)
+
+
+def test_assignment_reference_is_the_brute_force_optimum_and_greedy_fails_where_meant():
+    p = PROBLEMS["assignment"]
+    from flowtrack_course.grading.languages.problems import _lsa_greedy
+
+    for seed in range(4):
+        hidden = p.hidden(np.random.default_rng(seed))
+        greedy_right = []
+        for inp in [*p.public(), *hidden]:
+            C = np.asarray(inp["C"], float)
+            assert C.shape[0] <= C.shape[1] <= C.shape[0] + 2
+            want = _brute_force_assignment(C)
+            np.testing.assert_array_equal(p.reference(inp)["assignment"], want)
+            greedy_right.append(np.array_equal(_lsa_greedy(inp)["assignment"], want))
+        # public: greedy wrong, then right; hidden: right once, wrong twice (partial credit, named)
+        assert greedy_right == [False, True, True, False, False], seed
+
+
 # -- scoring: partial credit and the mistake catalogue, without a sandbox ---------------------------
 def _outcome(cases, outputs):
     return Outcome(
@@ -159,7 +183,8 @@ def test_strip_solutions_and_unbalanced_markers():
 
 def test_every_language_exercise_has_an_instructor_source_with_markers():
     assert {ex.language for ex in LANGUAGE_EXERCISES} == {"cpp", "java", "mathics", "octave"}
-    assert len(LANGUAGE_EXERCISES) == 16
+    assert len(LANGUAGE_EXERCISES) == 17  # 4 problems x 4 languages, and the assignment in C++
+    assert [ex.language for ex in LANGUAGE_EXERCISES if ex.problem == "assignment"] == ["cpp"]
     for ex in LANGUAGE_EXERCISES:
         text = (SOURCES / ex.notebook).read_text()
         assert "BEGIN SOLUTION" in text and "END SOLUTION" in text, ex.notebook
@@ -354,3 +379,30 @@ def test_language_answers_score_the_same_in_the_pool_and_fresh(toolchain, tmp_pa
     assert scores[True] == scores[False]
     assert scores[True][right.id] == right.max_score and scores[True][nb.id] == nb.max_score
     assert scores[True][wrong.id] == 0.0
+
+
+@pytest.mark.parametrize("toolchain", ["cpp"], indirect=True)
+def test_cpp_assignment_solution_stub_and_greedy(toolchain, tmp_path):
+    ex = _ex("cpp", "assignment")
+    source = (SOURCES / ex.notebook).read_text()
+    r = run_exercise(ex, SOURCES / ex.notebook, "ana")
+    assert r.score == r.max_score == 3.0, ([t.message for t in r.tests], r.problems)
+    stub = strip_solutions(source, "cpp")
+    r = run_exercise(ex, _write(tmp_path / "stub", ex, stub), "ana")
+    assert r.score == 0.0, [t.message for t in r.tests]
+    greedy = stub.replace(
+        "    // YOUR CODE HERE\n",
+        "    std::vector<bool> taken(m, false);\n"
+        "    for (int i = 0; i < n; ++i) {\n"
+        "        int best = -1;\n"
+        "        for (int j = 0; j < m; ++j)\n"
+        "            if (!taken[j] && (best < 0 || C(i, j) < C(i, best))) best = j;\n"
+        "        taken[best] = true;\n"
+        "        a[i] = best;\n"
+        "    }\n",
+    )
+    assert greedy != stub
+    r = run_exercise(ex, _write(tmp_path / "greedy", ex, greedy), "ana")
+    # public: 1 of 2 cases (0.5 of 1 point); hidden: 1 of 3 (2/3 of 2 points)
+    assert r.score == pytest.approx(0.5 + 2 / 3), [t.message for t in r.tests]
+    assert all("mistake assignment-greedy:" in t.message for t in r.tests), [t.message for t in r.tests]

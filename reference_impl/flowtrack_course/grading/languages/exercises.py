@@ -262,6 +262,7 @@ def _exercise(language: str, problem: Problem) -> LanguageExercise:
 
 LANGUAGE_EXERCISES: tuple[LanguageExercise, ...] = tuple(
     _exercise(lang, p) for lang in TOOLCHAINS for p in PROBLEMS.values()
+    if p.languages is None or lang in p.languages
 )
 
 
