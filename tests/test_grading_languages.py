@@ -291,6 +291,13 @@ def test_check_and_grade_commands_cover_the_languages(toolchain, tmp_path, capsy
     results = json.loads((tmp_path / "out" / "ana" / "results.json").read_text())
     assert any(t["name"].startswith(ex.id) for t in results["tests"])
     assert (tmp_path / "out" / "ben" / "feedback" / f"{ex.id}.md").is_file()
+    # `flowtrack grade` (run_grade: the layout check first) grades a class that answered only in Octave
+    from flowtrack_course.grading.instructor import run_grade
+
+    run = run_grade(subs, tmp_path / "out-cli", progress=False, log=lambda msg: None)
+    assert run.status == 0, run.reason
+    rows = {r["student"]: r for r in run.rows}
+    assert rows["ana"]["exercises"][ex.id] == 3.0 and rows["ben"]["exercises"][ex.id] == 0.0
 
 
 def test_materialise_solution_runs_the_octave_public_tests_locally(tmp_path):

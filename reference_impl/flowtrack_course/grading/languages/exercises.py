@@ -242,7 +242,7 @@ def _test(problem: Problem, hidden: bool) -> GradedTest:
 
 def _exercise(language: str, problem: Problem) -> LanguageExercise:
     tc = TOOLCHAINS[language]
-    timeout = tc.compile_seconds + tc.run_seconds + 30.0
+    timeout = tc.compile_seconds + tc.run_seconds + 30.0  # the wall-clock limit of one test's batch
     tests = tuple(
         GradedTest(t.name, t.grade_id, t.points, t.hidden, t.build, timeout)
         for t in (_test(problem, False), _test(problem, True))
