@@ -219,7 +219,8 @@ def _write(tmp_path: Path, ex, text: str) -> Path:
 @pytest.mark.parametrize("toolchain", ["cpp", "java", "mathics", "octave"], indirect=True)
 def test_solutions_get_full_marks(toolchain):
     slow = {"cpp": ["kalman_step", "mahalanobis_gating"], "mathics": ["kalman_step", "projection_jacobian"]}
-    problems = slow.get(toolchain, sorted(PROBLEMS))
+    answered = [p for p in sorted(PROBLEMS) if find_language_exercise(f"{toolchain}_{p}")]
+    problems = slow.get(toolchain, answered)
     for problem in problems:
         ex = _ex(toolchain, problem)
         r = run_exercise(ex, SOURCES / ex.notebook, "ana")
