@@ -73,7 +73,7 @@ def test_setpriv_cpp_system_attack_scores_zero_and_writes_nothing(tmp_path, monk
         assert not p.exists(), p
 
 
-@pytest.mark.parametrize("ex_id", ["octave_cv_model", "cpp_projection_jacobian"])
+@pytest.mark.parametrize("ex_id", ["octave_cv_model", "cpp_projection_jacobian", "mathics_cv_model"])
 def test_fallback_solution_full_marks(ex_id, tmp_path, monkeypatch, tmp_path_factory):
     use_sandbox_mode("fallback", monkeypatch, tmp_path_factory)
     r, messages = _grade(tmp_path, ex_id)
