@@ -183,8 +183,8 @@ def test_strip_solutions_and_unbalanced_markers():
 
 def test_every_language_exercise_has_an_instructor_source_with_markers():
     assert {ex.language for ex in LANGUAGE_EXERCISES} == {"cpp", "java", "mathics", "octave"}
-    assert len(LANGUAGE_EXERCISES) == 17  # 4 problems x 4 languages, and the assignment in C++
-    assert [ex.language for ex in LANGUAGE_EXERCISES if ex.problem == "assignment"] == ["cpp"]
+    assert len(LANGUAGE_EXERCISES) == 18  # 4 problems x 4 languages, and the assignment in C++ and Octave
+    assert [ex.language for ex in LANGUAGE_EXERCISES if ex.problem == "assignment"] == ["cpp", "octave"]
     for ex in LANGUAGE_EXERCISES:
         text = (SOURCES / ex.notebook).read_text()
         assert "BEGIN SOLUTION" in text and "END SOLUTION" in text, ex.notebook
@@ -389,16 +389,8 @@ def test_language_answers_score_the_same_in_the_pool_and_fresh(toolchain, tmp_pa
     assert scores[True][wrong.id] == 0.0
 
 
-@pytest.mark.parametrize("toolchain", ["cpp"], indirect=True)
-def test_cpp_assignment_solution_stub_and_greedy(toolchain, tmp_path):
-    ex = _ex("cpp", "assignment")
-    source = (SOURCES / ex.notebook).read_text()
-    r = run_exercise(ex, SOURCES / ex.notebook, "ana")
-    assert r.score == r.max_score == 3.0, ([t.message for t in r.tests], r.problems)
-    stub = strip_solutions(source, "cpp")
-    r = run_exercise(ex, _write(tmp_path / "stub", ex, stub), "ana")
-    assert r.score == 0.0, [t.message for t in r.tests]
-    greedy = stub.replace(
+_GREEDY = {
+    "cpp": (
         "    // YOUR CODE HERE\n",
         "    std::vector<bool> taken(m, false);\n"
         "    for (int i = 0; i < n; ++i) {\n"
@@ -408,7 +400,30 @@ def test_cpp_assignment_solution_stub_and_greedy(toolchain, tmp_path):
         "        taken[best] = true;\n"
         "        a[i] = best;\n"
         "    }\n",
-    )
+    ),
+    "octave": (
+        "  % YOUR CODE HERE\n",
+        "  free = true(1, m);\n"
+        "  for i = 1:n\n"
+        "    c = C(i, :);\n"
+        "    c(~free) = inf;\n"
+        "    [~, a(i)] = min(c);\n"
+        "    free(a(i)) = false;\n"
+        "  end\n",
+    ),
+}
+
+
+@pytest.mark.parametrize("toolchain", ["cpp", "octave"], indirect=True)
+def test_assignment_solution_stub_and_greedy(toolchain, tmp_path):
+    ex = _ex(toolchain, "assignment")
+    source = (SOURCES / ex.notebook).read_text()
+    r = run_exercise(ex, SOURCES / ex.notebook, "ana")
+    assert r.score == r.max_score == 3.0, ([t.message for t in r.tests], r.problems)
+    stub = strip_solutions(source, toolchain)
+    r = run_exercise(ex, _write(tmp_path / "stub", ex, stub), "ana")
+    assert r.score == 0.0, [t.message for t in r.tests]
+    greedy = stub.replace(*_GREEDY[toolchain])
     assert greedy != stub
     r = run_exercise(ex, _write(tmp_path / "greedy", ex, greedy), "ana")
     # public: 1 of 2 cases (0.5 of 1 point); hidden: 1 of 3 (2/3 of 2 points)
