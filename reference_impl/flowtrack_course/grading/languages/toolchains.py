@@ -29,11 +29,10 @@ student's definitions reach another exercise or another student. Every other lan
 run are processes the child starts (``Sandbox(spawn=True)``).
 
 CPU seconds per item measured by ``benchmarks/bench_grading.py --languages`` (3 students: solution,
-stub, partial; the grader's own start-up included): C++ ~1.6 (compiling the student's Eigen code:
+stub, partial; the grader's own start-up included): C++ ~1.4 (compiling the student's Eigen code:
 0.7 s for the headers alone, ~3 s for ``kalman_step``'s products and LDLT; -O0 is no faster, a
-precompiled Eigen header saves ~0.5 s but is ~100 MB), Java ~1.3 (``javac`` ~0.5 s with ``-proc:none``,
-~0.75 s without; a run ~0.1 s),
-Octave ~0.4, Mathics3 ~0.7 (was ~7.6 with a fresh interpreter per run).
+precompiled Eigen header saves ~0.5 s but is ~100 MB), Java ~1.0 (``javac`` ~0.5 s with ``-proc:none``,
+~0.75 s without; a run ~0.1 s), Octave ~0.4, Mathics3 ~0.6 (was ~7.6 with a fresh interpreter per run).
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@ It prints the outputs (and, with --check, compares them):
 
 The file is in the course's shared vectors format. Each case's inputs are written as Wolfram Language
 machine reals, your function is evaluated with ``N[...]`` in one Mathics3 session (``pip install
-mathics3``) and its ``InputForm`` is read back. Do not edit (the grader uses its own copy).
+mathics3``) and its ``InputForm`` is read back. Do not edit (the grader uses its own copy, calling
+``grade()`` inside its sandbox's own process).
 """
 
 import json
