@@ -183,8 +183,9 @@ def test_strip_solutions_and_unbalanced_markers():
 
 def test_every_language_exercise_has_an_instructor_source_with_markers():
     assert {ex.language for ex in LANGUAGE_EXERCISES} == {"cpp", "java", "mathics", "octave"}
-    assert len(LANGUAGE_EXERCISES) == 18  # 4 problems x 4 languages, and the assignment in C++ and Octave
-    assert [ex.language for ex in LANGUAGE_EXERCISES if ex.problem == "assignment"] == ["cpp", "octave"]
+    assert len(LANGUAGE_EXERCISES) == 19  # 4 problems x 4 languages, and the assignment in 3 of them
+    in_assignment = [ex.language for ex in LANGUAGE_EXERCISES if ex.problem == "assignment"]
+    assert in_assignment == ["cpp", "octave", "java"]
     for ex in LANGUAGE_EXERCISES:
         text = (SOURCES / ex.notebook).read_text()
         assert "BEGIN SOLUTION" in text and "END SOLUTION" in text, ex.notebook
@@ -401,6 +402,17 @@ _GREEDY = {
         "        a[i] = best;\n"
         "    }\n",
     ),
+    "java": (
+        "        // YOUR CODE HERE\n",
+        "        boolean[] taken = new boolean[m];\n"
+        "        for (int i = 0; i < n; i++) {\n"
+        "            int best = -1;\n"
+        "            for (int j = 0; j < m; j++)\n"
+        "                if (!taken[j] && (best < 0 || C[i][j] < C[i][best])) best = j;\n"
+        "            taken[best] = true;\n"
+        "            a[i] = best;\n"
+        "        }\n",
+    ),
     "octave": (
         "  % YOUR CODE HERE\n",
         "  free = true(1, m);\n"
@@ -414,7 +426,7 @@ _GREEDY = {
 }
 
 
-@pytest.mark.parametrize("toolchain", ["cpp", "octave"], indirect=True)
+@pytest.mark.parametrize("toolchain", ["cpp", "java", "octave"], indirect=True)
 def test_assignment_solution_stub_and_greedy(toolchain, tmp_path):
     ex = _ex(toolchain, "assignment")
     source = (SOURCES / ex.notebook).read_text()

@@ -21,7 +21,7 @@ answer): when a student's output matches one, the feedback names it with a ``mis
     ``{"z_pred" (m,), "S" (m, m), "Z" (N, m), "gate"}`` -> ``{"d2" (N,), "inside" (N,)}``:
     :math:`d^2_j = (z_j - \hat z)^\top S^{-1} (z_j - \hat z)` and ``inside[j] = 1`` iff
     :math:`d^2_j \le` ``gate`` (else 0).
-``assignment`` (C++ and Octave: the student writes the solver)
+``assignment`` (C++, Octave and Java: the student writes the solver)
     ``{"C" (n, m)}``, :math:`n \le m` -> ``{"assignment" (n,)}``: the column given to each row, distinct,
     minimising :math:`\sum_i C_{i, a_i}` (the linear assignment problem; reference
     :func:`scipy.optimize.linear_sum_assignment`). Hidden costs are continuous random draws, so the
@@ -382,7 +382,7 @@ ASSIGNMENT = Problem(
             _lsa_maximize,
         ),
     ),
-    languages=("cpp", "octave"),
+    languages=("cpp", "octave", "java"),
 )
 
 PROBLEMS: dict[str, Problem] = {
