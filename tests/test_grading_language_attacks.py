@@ -1,4 +1,5 @@
-"""Issue 19's attacks in C++, Java and Octave: each scores as an honest wrong answer, changes nothing outside.
+"""Issue 19's attacks in C++, Java, Octave and Mathematica: each scores as an honest wrong answer, changes
+nothing outside.
 
 Every attack is a student's source file for a language exercise, graded by ``run_exercise`` under
 bubblewrap (required). The answers are the stubs' (all zeros), so an honest submission scores 0 and
@@ -13,6 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -225,6 +228,23 @@ def test_reading_the_instructor_solutions_fails(tmp_path):
     )
     assert SOLUTION["octave"].is_file() and os.access(SOLUTION["octave"], os.R_OK)
     score, messages = _grade(tmp_path, "octave", octave)
+    assert score == 0.0, messages
+    # Mathics3 runs in the sandbox's own process: the instructor's file is not there either. The
+    # attack loads it (its cvModel is the solution) and renames the stub's own definition.
+    get = f'Get["{SOLUTION["mathics"]}"];\ncvModel0[dt_, q_] :='
+    mathics = _stub("mathics").replace("cvModel[dt_, q_] :=", get, 1)
+    assert "cvModel0" in mathics
+    # control: run outside any sandbox (the bundle's own harness), the attack passes the public tests
+    from flowtrack_course.grading.languages import materialise
+
+    ex = find_language_exercise("mathics_cv_model")
+    local = tmp_path / "local"
+    materialise(ex, SOLUTION["mathics"].parent, local, stub=True)
+    (local / "cv_model.wl").write_text(mathics)
+    cmd = [sys.executable, "ft_mathics.py", "--check", "cv_model", "public.json", "cv_model.wl"]
+    proc = subprocess.run(cmd, cwd=local, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0 and proc.stdout.count(" PASS ") == 2, proc.stdout + proc.stderr
+    score, messages = _grade(tmp_path / "mathics", "mathics", mathics)
     assert score == 0.0, messages
 
 

@@ -9,6 +9,7 @@ named, and a compile error becomes feedback with the compiler's message.
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 from pathlib import Path
@@ -105,6 +106,29 @@ def test_mahalanobis_reference_matches_solve_and_the_gate():
     assert p.reference(p.public()[0])["inside"].tolist() == [1.0, 1.0, 0.0]  # 1, 4, 9.25 vs 9.21
 
 
+def _brute_force_assignment(C: np.ndarray) -> np.ndarray:
+    n, m = C.shape
+    best = min(itertools.permutations(range(m), n), key=lambda cols: sum(C[i, j] for i, j in enumerate(cols)))
+    return np.array(best, dtype=float)
+
+
+def test_assignment_reference_is_the_brute_force_optimum_and_greedy_fails_where_meant():
+    p = PROBLEMS["assignment"]
+    from flowtrack_course.grading.languages.problems import _lsa_greedy
+
+    for seed in range(4):
+        hidden = p.hidden(np.random.default_rng(seed))
+        greedy_right = []
+        for inp in [*p.public(), *hidden]:
+            C = np.asarray(inp["C"], float)
+            assert C.shape[0] <= C.shape[1] <= C.shape[0] + 2
+            want = _brute_force_assignment(C)
+            np.testing.assert_array_equal(p.reference(inp)["assignment"], want)
+            greedy_right.append(np.array_equal(_lsa_greedy(inp)["assignment"], want))
+        # public: greedy wrong, then right; hidden: right once, wrong twice (partial credit, named)
+        assert greedy_right == [False, True, True, False, False], seed
+
+
 # -- scoring: partial credit and the mistake catalogue, without a sandbox ---------------------------
 def _outcome(cases, outputs):
     return Outcome(
@@ -159,7 +183,9 @@ def test_strip_solutions_and_unbalanced_markers():
 
 def test_every_language_exercise_has_an_instructor_source_with_markers():
     assert {ex.language for ex in LANGUAGE_EXERCISES} == {"cpp", "java", "mathics", "octave"}
-    assert len(LANGUAGE_EXERCISES) == 16
+    assert len(LANGUAGE_EXERCISES) == 19  # 4 problems x 4 languages, and the assignment in 3 of them
+    in_assignment = [ex.language for ex in LANGUAGE_EXERCISES if ex.problem == "assignment"]
+    assert in_assignment == ["cpp", "octave", "java"]
     for ex in LANGUAGE_EXERCISES:
         text = (SOURCES / ex.notebook).read_text()
         assert "BEGIN SOLUTION" in text and "END SOLUTION" in text, ex.notebook
@@ -194,7 +220,8 @@ def _write(tmp_path: Path, ex, text: str) -> Path:
 @pytest.mark.parametrize("toolchain", ["cpp", "java", "mathics", "octave"], indirect=True)
 def test_solutions_get_full_marks(toolchain):
     slow = {"cpp": ["kalman_step", "mahalanobis_gating"], "mathics": ["kalman_step", "projection_jacobian"]}
-    problems = slow.get(toolchain, sorted(PROBLEMS))
+    answered = [p for p in sorted(PROBLEMS) if find_language_exercise(f"{toolchain}_{p}")]
+    problems = slow.get(toolchain, answered)
     for problem in problems:
         ex = _ex(toolchain, problem)
         r = run_exercise(ex, SOURCES / ex.notebook, "ana")
@@ -266,6 +293,13 @@ def test_check_and_grade_commands_cover_the_languages(toolchain, tmp_path, capsy
     results = json.loads((tmp_path / "out" / "ana" / "results.json").read_text())
     assert any(t["name"].startswith(ex.id) for t in results["tests"])
     assert (tmp_path / "out" / "ben" / "feedback" / f"{ex.id}.md").is_file()
+    # `flowtrack grade` (run_grade: the layout check first) grades a class that answered only in Octave
+    from flowtrack_course.grading.instructor import run_grade
+
+    run = run_grade(subs, tmp_path / "out-cli", progress=False, log=lambda msg: None)
+    assert run.status == 0, run.reason
+    rows = {r["student"]: r for r in run.rows}
+    assert rows["ana"]["exercises"][ex.id] == 3.0 and rows["ben"]["exercises"][ex.id] == 0.0
 
 
 def test_materialise_solution_runs_the_octave_public_tests_locally(tmp_path):
@@ -354,3 +388,56 @@ def test_language_answers_score_the_same_in_the_pool_and_fresh(toolchain, tmp_pa
     assert scores[True] == scores[False]
     assert scores[True][right.id] == right.max_score and scores[True][nb.id] == nb.max_score
     assert scores[True][wrong.id] == 0.0
+
+
+_GREEDY = {
+    "cpp": (
+        "    // YOUR CODE HERE\n",
+        "    std::vector<bool> taken(m, false);\n"
+        "    for (int i = 0; i < n; ++i) {\n"
+        "        int best = -1;\n"
+        "        for (int j = 0; j < m; ++j)\n"
+        "            if (!taken[j] && (best < 0 || C(i, j) < C(i, best))) best = j;\n"
+        "        taken[best] = true;\n"
+        "        a[i] = best;\n"
+        "    }\n",
+    ),
+    "java": (
+        "        // YOUR CODE HERE\n",
+        "        boolean[] taken = new boolean[m];\n"
+        "        for (int i = 0; i < n; i++) {\n"
+        "            int best = -1;\n"
+        "            for (int j = 0; j < m; j++)\n"
+        "                if (!taken[j] && (best < 0 || C[i][j] < C[i][best])) best = j;\n"
+        "            taken[best] = true;\n"
+        "            a[i] = best;\n"
+        "        }\n",
+    ),
+    "octave": (
+        "  % YOUR CODE HERE\n",
+        "  free = true(1, m);\n"
+        "  for i = 1:n\n"
+        "    c = C(i, :);\n"
+        "    c(~free) = inf;\n"
+        "    [~, a(i)] = min(c);\n"
+        "    free(a(i)) = false;\n"
+        "  end\n",
+    ),
+}
+
+
+@pytest.mark.parametrize("toolchain", ["cpp", "java", "octave"], indirect=True)
+def test_assignment_solution_stub_and_greedy(toolchain, tmp_path):
+    ex = _ex(toolchain, "assignment")
+    source = (SOURCES / ex.notebook).read_text()
+    r = run_exercise(ex, SOURCES / ex.notebook, "ana")
+    assert r.score == r.max_score == 3.0, ([t.message for t in r.tests], r.problems)
+    stub = strip_solutions(source, toolchain)
+    r = run_exercise(ex, _write(tmp_path / "stub", ex, stub), "ana")
+    assert r.score == 0.0, [t.message for t in r.tests]
+    greedy = stub.replace(*_GREEDY[toolchain])
+    assert greedy != stub
+    r = run_exercise(ex, _write(tmp_path / "greedy", ex, greedy), "ana")
+    # public: 1 of 2 cases (0.5 of 1 point); hidden: 1 of 3 (2/3 of 2 points)
+    assert r.score == pytest.approx(0.5 + 2 / 3), [t.message for t in r.tests]
+    assert all("mistake assignment-greedy:" in t.message for t in r.tests), [t.message for t in r.tests]

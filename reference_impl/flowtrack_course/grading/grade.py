@@ -294,6 +294,8 @@ def run_exercise(
         kwargs["hidden_paths"] = tuple(hidden_paths)
     if limits is not None:
         kwargs["limits"] = limits
+    if getattr(exercise, "spawns", False):  # issue 19: an answer in another language is built and run
+        kwargs["spawn"] = True
     # Every public test runs before any hidden one: the child keeps state between tests, so a
     # public test run after a hidden one could carry the hidden inputs into its (shown) message.
     # Results are reported in the exercise's order.
@@ -372,7 +374,8 @@ def exercises_hash(exercises: Sequence[Exercise]) -> str:
     """sha256 of the exercises' definitions and of the source files their tests are built in.
 
     A change of any test, point value, notebook path or of the module defining the tests changes it,
-    so finished students are re-graded after the tests change.
+    so finished students are re-graded after the tests change. An exercise may name more files its
+    grading depends on (``source_files()``: a language item's driver and harness files, issue 19).
     """
     h = hashlib.sha256()
     files: set[str] = set()
@@ -381,6 +384,9 @@ def exercises_hash(exercises: Sequence[Exercise]) -> str:
         desc += [list(ex.allowed)] if ex.allowed else []
         desc += [[t.name, t.grade_id, float(t.points), bool(t.hidden), float(t.timeout)] for t in ex.tests]
         h.update(json.dumps(desc).encode())
+        extra = getattr(ex, "source_files", None)  # issue 19: a language item's harness and driver files
+        if callable(extra):
+            files.update(str(p) for p in extra())
         for t in ex.tests:
             for fn in (t.build, inspect.unwrap(t.build)):  # the scoring helpers and the test's module
                 try:

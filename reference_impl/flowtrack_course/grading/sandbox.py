@@ -267,6 +267,12 @@ class Sandbox:
     preload : sequence of str
         Modules a zygote imports before forking (those of packages in its view; what the exercise's
         child could not import is refused there too).
+    spawn : bool
+        The exercise's own (trusted) code starts programs: an answer in another language
+        (:mod:`flowtrack_course.grading.languages`) is compiled and run by the child. Outside
+        bubblewrap the in-process audit hook then lets the child start processes and signal them;
+        those run as the sandbox's uid (setpriv) with the same resource limits, beyond the hook's
+        reach (the fallback is no boundary for them: ``flowtrack grade`` refuses it unless told).
 
     Attributes
     ----------
@@ -296,8 +302,9 @@ class Sandbox:
         allowed: Sequence[str] | None = None,
         zygote: bool = False,
         preload: Sequence[str] = (),
+        spawn: bool = False,
     ) -> None:
-        self._configure(cells, blocked, allowed)
+        self._configure(cells, blocked, allowed, spawn)
         if not isinstance(limits, Limits):
             raise TypeError("limits must be a Limits")
         self.limits = limits
@@ -316,8 +323,9 @@ class Sandbox:
         self._inits: dict[tuple, dict] = {}  # the init messages made for the current zygote, by view
         self._init_common(workdir_parent)
 
-    def _configure(self, cells, blocked, allowed) -> None:
-        """Validate and set the cells, blocked modules and allowlist of the (next) exercise."""
+    def _configure(self, cells, blocked, allowed, spawn=False) -> None:
+        """Validate and set the cells, blocked modules, allowlist and ``spawn`` of the (next) exercise."""
+        self.spawn = bool(spawn)
         if isinstance(cells, str | bytes) or not all(
             isinstance(c, tuple | list) and len(c) == 2 and all(isinstance(s, str) for s in c) for c in cells
         ):
@@ -553,7 +561,8 @@ class Sandbox:
         else:
             init = self._inits[view] = self._command(launch=False)[2]
         init = dict(init)
-        init.update(op="init", nproc=self._nproc_child, blocked=list(self.blocked), cells=self.cells)
+        init.update(op="init", nproc=self._nproc_child, blocked=list(self.blocked), cells=self.cells,
+                    allow_spawn=self.spawn)
         self._cpu_used = 0.0
         deadline = time.monotonic() + timeout
         try:
@@ -920,10 +929,10 @@ class Sandbox:
             self._kill()
 
     def prepare(self, cells: Sequence[tuple[str, str]], *, blocked: Sequence[str] = (),
-                allowed: Sequence[str] | None = None) -> None:
+                allowed: Sequence[str] | None = None, spawn: bool = False) -> None:
         """Set the next exercise of a zygote sandbox (its :attr:`key` must stay the same)."""
         key = self.key
-        self._configure(cells, blocked, allowed)
+        self._configure(cells, blocked, allowed, spawn)
         if self.key != key:
             raise ValueError("prepare: the exercise needs another sandbox (a different key)")
         if self._child_live:
@@ -1066,7 +1075,8 @@ class SandboxPool:
             self._boxes[box.key] = box
             return _Lease(box)
         box.close()
-        old.prepare(cells, blocked=kwargs.get("blocked", ()), allowed=kwargs.get("allowed"))
+        old.prepare(cells, blocked=kwargs.get("blocked", ()), allowed=kwargs.get("allowed"),
+                    spawn=kwargs.get("spawn", False))
         return _Lease(old)
 
     def __enter__(self) -> SandboxPool:

@@ -1,4 +1,5 @@
-"""Students answer in C++ (Eigen) and Octave too, graded by the same grader (issue 19).
+"""Students answer in C++ (Eigen), Java, Octave and Mathematica (Mathics3) too, graded by the same
+grader (issue 19).
 
 - :mod:`.problems`: the language-neutral problems, their public and seeded hidden inputs, the Python
   reference's expected values and the catalogued mistakes;

@@ -11,7 +11,9 @@ and with its output capped. The program's ``OUTPUT <id> <json>`` / ``ERROR <id> 
 lines become the call's result: ``{id: {"ok": bool, "value": outputs | None, "error": str}}``.
 
 A command word ``@PYTHON@`` stands for the sandbox's own Python interpreter, which then gets the
-child's module path in ``FT_PYTHONPATH`` (the Mathics3 harness). Everything the program does happens
+child's module path in ``FT_PYTHONPATH``. A harness written in Python (Mathics3's) may instead run
+in the child itself (``inproc``): the child is then the program, under the sandbox's per-batch CPU,
+memory and wall-clock limits. Everything the program does happens
 inside the sandbox (its uid, namespaces and resource limits
 apply to the compiler and to the program, which are the child's descendants); on a timeout the
 driver kills the program's whole process group.
@@ -82,12 +84,33 @@ def _ft_build():
     _STATE["built"] = True
 
 
+def _ft_inproc(doc):
+    """The harness run in this process (Mathics3: its interpreter may already be loaded here)."""
+    spec = _SPEC["inproc"]
+    ns = _STATE.get("inproc")
+    if ns is None:
+        path = _os.path.join(_os.getcwd(), spec["file"])
+        ns = {"__name__": "ft_inproc", "__file__": path}
+        with open(path, encoding="utf-8") as fh:
+            exec(compile(fh.read(), path, "exec"), ns)
+        _STATE["inproc"] = ns
+    text = ns[spec["function"]](*spec["args"], doc)
+    if not isinstance(text, str):
+        raise RuntimeError("the harness returned no text")
+    if len(text) > _SPEC["output_bytes"]:
+        raise RuntimeError(f"the program printed more than {_SPEC['output_bytes']} bytes")
+    return 0, text
+
+
 def run_cases(doc):
     """Run the program on the vectors document ``doc``; ``{case id: {"ok", "value", "error"}}``."""
     _ft_build()
-    with open("cases.json", "w", encoding="utf-8") as fh:
-        _json.dump(doc, fh)
-    rc, text = _ft_exec(_SPEC["run"], _SPEC["run_seconds"], "run.log", "the program")
+    if _SPEC.get("inproc"):
+        rc, text = _ft_inproc(doc)
+    else:
+        with open("cases.json", "w", encoding="utf-8") as fh:
+            _json.dump(doc, fh)
+        rc, text = _ft_exec(_SPEC["run"], _SPEC["run_seconds"], "run.log", "the program")
     results = {}
     for line in text.splitlines():
         parts = line.split(" ", 2)
@@ -120,9 +143,17 @@ def driver_cell(
     compile_seconds: float,
     run_seconds: float,
     output_bytes: int,
+    inproc: dict | None = None,
 ) -> str:
-    """The Python source of the driver cell (see the module docstring); every argument is data."""
+    """The Python source of the driver cell (see the module docstring); every argument is data.
+
+    ``inproc`` (``{"file", "function", "args"}``): instead of running ``run``, load the harness
+    ``file`` (one of ``files``) into this process once and call ``function(*args, doc)``, which
+    returns the program's output lines as text (Mathics3, whose interpreter a zygote may have
+    loaded before forking this child).
+    """
     spec = {
+        "inproc": dict(inproc) if inproc else None,
         "files": dict(files),
         "blobs": {k: base64.b64encode(v).decode("ascii") for k, v in blobs.items()},
         "build": [list(map(str, c)) for c in build],

@@ -55,6 +55,15 @@ BLOCKED = (
     "scipy.optimize",
 )
 
+#: What a Mathematica answer's sandbox holds besides the standard library: Mathics3 and what it needs,
+#: nothing else (no flowtrack at all). Its zygote (:class:`~flowtrack_course.grading.sandbox.SandboxPool`)
+#: imports these before forking a child per exercise: ``mathics.__main__`` loads the builtins and
+#: ``mathics.profile_mathics`` builds one pristine set of definitions, so that a child starts the
+#: interpreter in milliseconds instead of seconds (the harness falls back to building its own).
+#: The zygote preloads only where nothing in its view is blocked, so ``scipy.optimize`` (a
+#: dependency of Mathics3, whose own solvers are the language's ecosystem anyway) is not blocked there.
+MATHICS_ALLOWED = ("numpy", "mathics", "mathics.__main__", "mathics.profile_mathics")
+
 PUBLIC_POINTS = 1.0
 HIDDEN_POINTS = 2.0
 MAX_SOURCE_BYTES = 256 * 1024
@@ -71,6 +80,21 @@ class LanguageExercise(Exercise):
     def toolchain(self) -> Toolchain:
         return TOOLCHAINS[self.language]
 
+    @property
+    def spawns(self) -> bool:
+        """The driver starts compilers and programs (every language but Mathics3, run in-process):
+        ``run_exercise`` then lets the sandbox's child start processes (``Sandbox(spawn=True)``)."""
+        return self.toolchain.inproc(self.problem) is None
+
+    def source_files(self) -> list[Path]:
+        """The grader's files this item's grading depends on beyond its tests' module: the driver, the
+        toolchains and problems modules and the language's harness files (``exercises_hash`` hashes
+        them, so a change of any of them re-grades finished students)."""
+        here = Path(__file__).resolve().parent
+        files = [here / "driver.py", here / "toolchains.py", here / "problems.py", here / "exercises.py"]
+        files += sorted(p for p in (here / "files" / self.language).rglob("*") if p.is_file())
+        return files
+
     def extract_cells(self, path: Path) -> tuple[list[tuple[str, str]], list[str]]:
         """The driver cell carrying the student's file ``path``, or ``([], [why])``."""
         name = self.toolchain.source_name(self.problem)
@@ -84,14 +108,6 @@ class LanguageExercise(Exercise):
         except UnicodeDecodeError:
             return [], [f"{name} is not UTF-8 text"]
         tc = self.toolchain
-        from ..isolation import choose_mode
-
-        mode, why = choose_mode()
-        if mode != "bwrap":  # the fallback's audit hook refuses to start compilers and interpreters
-            return [], [
-                f"{tc.title} answers are graded only under bubblewrap ({why}); run the public "
-                f"tests locally as the README of exercises/{self.language}/ says"
-            ]
         try:
             blobs = tc.blobs(self.problem)
         except Exception as exc:  # a missing toolchain is the grading machine's problem: say so
@@ -105,6 +121,7 @@ class LanguageExercise(Exercise):
             compile_seconds=tc.compile_seconds,
             run_seconds=tc.run_seconds,
             output_bytes=256 * 1024,
+            inproc=tc.inproc(self.problem),
         )
         return [(f"{self.language}:{name}", cell)], []
 
@@ -225,7 +242,7 @@ def _test(problem: Problem, hidden: bool) -> GradedTest:
 
 def _exercise(language: str, problem: Problem) -> LanguageExercise:
     tc = TOOLCHAINS[language]
-    timeout = tc.compile_seconds + tc.run_seconds + 30.0
+    timeout = tc.compile_seconds + tc.run_seconds + 30.0  # the wall-clock limit of one test's batch
     tests = tuple(
         GradedTest(t.name, t.grade_id, t.points, t.hidden, t.build, timeout)
         for t in (_test(problem, False), _test(problem, True))
@@ -235,7 +252,8 @@ def _exercise(language: str, problem: Problem) -> LanguageExercise:
         title=f"{problem.title} ({tc.title})",
         notebook=f"{language}/{problem.name}/{tc.source_name(problem.name)}",
         answer_cells=(tc.source_name(problem.name),),
-        blocked=BLOCKED,
+        blocked=tuple(b for b in BLOCKED if b != "scipy.optimize") if language == "mathics" else BLOCKED,
+        allowed=MATHICS_ALLOWED if language == "mathics" else None,
         tests=tests,
         language=language,
         problem=problem.name,
@@ -244,6 +262,7 @@ def _exercise(language: str, problem: Problem) -> LanguageExercise:
 
 LANGUAGE_EXERCISES: tuple[LanguageExercise, ...] = tuple(
     _exercise(lang, p) for lang in TOOLCHAINS for p in PROBLEMS.values()
+    if p.languages is None or lang in p.languages
 )
 
 

@@ -21,6 +21,12 @@ answer): when a student's output matches one, the feedback names it with a ``mis
     ``{"z_pred" (m,), "S" (m, m), "Z" (N, m), "gate"}`` -> ``{"d2" (N,), "inside" (N,)}``:
     :math:`d^2_j = (z_j - \hat z)^\top S^{-1} (z_j - \hat z)` and ``inside[j] = 1`` iff
     :math:`d^2_j \le` ``gate`` (else 0).
+``assignment`` (C++, Octave and Java: the student writes the solver)
+    ``{"C" (n, m)}``, :math:`n \le m` -> ``{"assignment" (n,)}``: the column given to each row, distinct,
+    minimising :math:`\sum_i C_{i, a_i}` (the linear assignment problem; reference
+    :func:`scipy.optimize.linear_sum_assignment`). Hidden costs are continuous random draws, so the
+    optimum is unique; two of the three hidden cases (and one public case) are drawn so that the
+    greedy answer (each row in turn takes its cheapest free column) is not optimal.
 """
 
 from __future__ import annotations
@@ -49,6 +55,7 @@ class Problem:
     rtol: float = 1e-7
     atol: float = 1e-9
     mistakes: tuple[tuple[str, str, Callable[[Inputs], Outputs]], ...] = ()
+    languages: tuple[str, ...] | None = None  # the languages it is set in (None: every language)
 
 
 def _plain(d: dict) -> dict:
@@ -305,8 +312,81 @@ MAHALANOBIS_GATING = Problem(
     ),
 )
 
+# -- assignment ---------------------------------------------------------------------------------
+def _lsa_reference(inp: Inputs) -> Outputs:
+    from scipy.optimize import linear_sum_assignment
+
+    C = np.atleast_2d(np.asarray(inp["C"], float))
+    rows, cols = linear_sum_assignment(C)
+    out = np.full(C.shape[0], -1.0)
+    out[rows] = cols
+    return {"assignment": out}
+
+
+def _lsa_greedy(inp: Inputs) -> Outputs:
+    C = np.atleast_2d(np.asarray(inp["C"], float))
+    free = list(range(C.shape[1]))
+    out = []
+    for row in C:
+        j = min(free, key=lambda k: row[k])
+        free.remove(j)
+        out.append(float(j))
+    return {"assignment": np.array(out)}
+
+
+def _lsa_maximize(inp: Inputs) -> Outputs:
+    from scipy.optimize import linear_sum_assignment
+
+    C = np.atleast_2d(np.asarray(inp["C"], float))
+    rows, cols = linear_sum_assignment(C, maximize=True)
+    out = np.full(C.shape[0], -1.0)
+    out[rows] = cols
+    return {"assignment": out}
+
+
+def _lsa_case(rng: np.random.Generator, greedy_fails: bool) -> Inputs:
+    """A random cost matrix (n in 3..6, m in n..n+2) on which the greedy answer is (or is not) optimal."""
+    for _ in range(10_000):
+        n = int(rng.integers(3, 7))
+        C = rng.uniform(0.0, 10.0, size=(n, n + int(rng.integers(0, 3))))
+        inp = {"C": C.tolist()}
+        same = np.array_equal(_lsa_greedy(inp)["assignment"], _lsa_reference(inp)["assignment"])
+        if same != greedy_fails:
+            return inp
+    raise RuntimeError("no cost matrix of the requested kind was drawn")  # pragma: no cover
+
+
+ASSIGNMENT = Problem(
+    "assignment",
+    "The linear assignment problem (write the solver)",
+    ("assignment",),
+    lambda: [
+        {"C": [[1.0, 2.0, 9.0], [2.0, 9.0, 9.0], [9.0, 9.0, 3.0]]},  # greedy: 1 + 9 + 3; optimum 2 + 2 + 3
+        {"C": [[4.0, 1.0, 3.0, 7.0], [2.0, 0.5, 5.0, 8.0], [3.0, 2.0, 2.0, 6.0]]},  # 3 x 4, greedy optimal
+    ],
+    lambda rng: [_lsa_case(rng, False), _lsa_case(rng, True), _lsa_case(rng, True)],
+    _lsa_reference,
+    rtol=0.0,
+    atol=1e-9,
+    mistakes=(
+        (
+            "assignment-greedy",
+            "each row took its cheapest free column in turn (greedy); the optimum may give a row a "
+            "dearer column so that the others get cheaper ones: search all assignments (small n) or "
+            "use the Hungarian algorithm",
+            _lsa_greedy,
+        ),
+        (
+            "assignment-maximize",
+            "the assignment maximises the total cost; it must minimise it",
+            _lsa_maximize,
+        ),
+    ),
+    languages=("cpp", "octave", "java"),
+)
+
 PROBLEMS: dict[str, Problem] = {
-    p.name: p for p in (CV_MODEL, KALMAN_STEP, PROJECTION_JACOBIAN, MAHALANOBIS_GATING)
+    p.name: p for p in (CV_MODEL, KALMAN_STEP, PROJECTION_JACOBIAN, MAHALANOBIS_GATING, ASSIGNMENT)
 }
 
 

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <Eigen/Dense>
 #include <nlohmann/json.hpp>
@@ -76,6 +77,13 @@ static json solve(const json& in) {
     const Eigen::VectorXd d2 = mahalanobis_d2(vec(in.at("z_pred")), mat(in.at("S")), mat(in.at("Z")));
     const Eigen::VectorXi inside = gate(d2, in.at("gate").get<double>());
     return {{"d2", out_vec(d2)}, {"inside", out_vec(inside)}};
+#elif defined(FT_PROBLEM_assignment)
+    const Eigen::MatrixXd C = mat(in.at("C"));
+    if (C.rows() > C.cols()) throw std::runtime_error("C must have at least as many columns as rows");
+    const std::vector<int> a = assignment(C);
+    json out = json::array();
+    for (int j : a) out.push_back(static_cast<double>(j));
+    return {{"assignment", out}};
 #else
 #error "compile with -DFT_PROBLEM_<problem>"
 #endif

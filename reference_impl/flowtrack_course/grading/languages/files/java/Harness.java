@@ -82,6 +82,13 @@ public final class Harness {
                 out.put("inside", json(toDouble(MahalanobisGating.gate(d2, in.get("gate").getAsDouble()))));
                 break;
             }
+            case "assignment": {
+                double[][] C = mat(in.get("C"));
+                if (C.length > 0 && C.length > C[0].length)
+                    throw new IllegalArgumentException("C must have at least as many columns as rows");
+                out.put("assignment", json(toDouble(Assignment.solve(C))));
+                break;
+            }
             default:
                 throw new IllegalArgumentException("unknown problem " + problem);
         }

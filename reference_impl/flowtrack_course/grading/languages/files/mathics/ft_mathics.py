@@ -8,7 +8,8 @@ It prints the outputs (and, with --check, compares them):
 
 The file is in the course's shared vectors format. Each case's inputs are written as Wolfram Language
 machine reals, your function is evaluated with ``N[...]`` in one Mathics3 session (``pip install
-mathics3``) and its ``InputForm`` is read back. Do not edit (the grader uses its own copy).
+mathics3``) and its ``InputForm`` is read back. Do not edit (the grader uses its own copy, calling
+``grade()`` inside its sandbox's own process).
 """
 
 import json
@@ -58,28 +59,53 @@ def compare(got, exp, rtol, atol):
     return err if err <= atol + rtol * abs(float(exp)) else math.inf if math.isnan(err) else -err - 1.0
 
 
-def main(argv):
-    check = argv[:1] == ["--check"]
-    if check:
-        argv = argv[1:]
-    if len(argv) != 3:
-        print(__doc__, file=sys.stderr)
-        return 2
-    problem, cases_path, source = argv
+MAX_PRINTS = 1000  # Print[] results kept per evaluation (a loop of prints must not fill the memory)
+
+
+class _CappedOut(list):
+    """``Evaluation.out`` keeping the first :data:`MAX_PRINTS` messages and prints."""
+
+    def append(self, item):
+        if len(self) < MAX_PRINTS:
+            super().append(item)
+
+
+def new_session():
+    """A fresh Mathics3 session. The grader's sandbox may have loaded the builtins and built one
+    pristine set of definitions before any student code existed (``mathics.profile_mathics``, imported
+    by a zygote that then forks a child per exercise): that one is used when present."""
     extra = os.environ.get("FT_PYTHONPATH")
     if extra:
-        sys.path[:0] = [p for p in extra.split(os.pathsep) if p]
-    from mathics.core.load_builtin import import_and_load_builtins
+        sys.path[:0] = [p for p in extra.split(os.pathsep) if p and p not in sys.path]
+    from mathics.core import load_builtin
 
-    import_and_load_builtins()
+    if not load_builtin.mathics3_builtins_modules:
+        load_builtin.import_and_load_builtins()
+    from mathics.core.evaluation import Evaluation
     from mathics.session import MathicsSession
 
-    with open(cases_path, encoding="utf-8") as fh:
-        doc = json.load(fh)
-    session = MathicsSession()
-    session.evaluate('Get["' + os.path.abspath(source).replace("\\", "\\\\").replace('"', '\\"') + '"]')
+    warm = sys.modules.get("mathics.profile_mathics")
+    definitions = getattr(warm, "definitions", None)
+    if definitions is None:
+        session = MathicsSession()
+    else:  # a MathicsSession around the pre-built definitions (its __init__ would build new ones)
+        session = MathicsSession.__new__(MathicsSession)
+        session.form, session.last_result, session.shell = "InputForm", None, None
+        session.definitions = definitions
+        session.evaluation = Evaluation(definitions=definitions, catch_interrupt=False)
+    session.evaluation.out = _CappedOut()
+    return session
+
+
+def run_doc(problem, doc, source, check=False, session=None):
+    """Evaluate ``source`` (a .wl file) in ``session`` (a new one when None), call the problem's
+    function on every case of the vectors document ``doc``; return ``(lines, all_ok, session)``."""
+    if session is None:
+        session = new_session()
+        session.evaluate('Get["' + os.path.abspath(source).replace("\\", "\\\\").replace('"', '\\"') + '"]')
     function, args, outputs = CALLS[problem]
     all_ok = True
+    lines = []
     for case in doc["cases"]:
         cid = case["id"]
         try:
@@ -92,10 +118,10 @@ def main(argv):
                 raise ValueError(f"{function} must return {{{', '.join(outputs)}}}")
             out = dict(zip(outputs, got))
         except Exception as exc:  # this case's error, reported like the other harnesses do
-            print(f"ERROR {cid} {type(exc).__name__}: {' '.join(str(exc).split())[:300]}", flush=True)
+            lines.append(f"ERROR {cid} {type(exc).__name__}: {' '.join(str(exc).split())[:300]}")
             all_ok = False
             continue
-        print(f"OUTPUT {cid} {json.dumps(out)}", flush=True)
+        lines.append(f"OUTPUT {cid} {json.dumps(out)}")
         if check:
             worst, msg = 0.0, "ok"
             for name, exp in case["expected"].items():
@@ -105,7 +131,33 @@ def main(argv):
                 worst = max(worst, abs(e + 1.0) if e < 0 else e)
             all_ok = all_ok and msg == "ok"
             verdict = "PASS" if msg == "ok" else "FAIL"
-            print(f"CASE {problem} {cid} {verdict} {worst:.3g} {msg}", flush=True)
+            lines.append(f"CASE {problem} {cid} {verdict} {worst:.3g} {msg}")
+    return lines, all_ok, session
+
+
+_GRADER = {}
+
+
+def grade(problem, source, doc):
+    """The grader's entry point (run inside its sandbox, in-process): the output lines for ``doc``.
+    The public and the hidden test of one exercise share the session (the student's file is read once)."""
+    lines, _, _GRADER["session"] = run_doc(problem, doc, source, session=_GRADER.get("session"))
+    return "\n".join(lines) + "\n"
+
+
+def main(argv):
+    check = argv[:1] == ["--check"]
+    if check:
+        argv = argv[1:]
+    if len(argv) != 3:
+        print(__doc__, file=sys.stderr)
+        return 2
+    problem, cases_path, source = argv
+    with open(cases_path, encoding="utf-8") as fh:
+        doc = json.load(fh)
+    lines, all_ok, _ = run_doc(problem, doc, source, check)
+    for line in lines:
+        print(line, flush=True)
     return 1 if check and not all_ok else 0
 
 

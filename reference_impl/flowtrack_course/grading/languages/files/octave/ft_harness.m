@@ -54,6 +54,13 @@ function out = ft_solve(problem, in)
       Z = reshape(in.Z, [], m);
       [d2, inside] = mahalanobis_gating(in.z_pred(:), in.S, Z, in.gate);
       out = struct('d2', {double(d2(:))'}, 'inside', {double(inside(:))'});
+    case 'assignment'
+      C = in.C;
+      if size(C, 1) > size(C, 2)
+        error('C must have at least as many columns as rows');
+      end
+      a = assignment(C);
+      out = struct('assignment', {double(a(:))' - 1});  % the shared format counts from 0
     otherwise
       error('unknown problem %s', problem);
   end
