@@ -23,8 +23,8 @@ Debian packages: ``g++ libeigen3-dev nlohmann-json3-dev`` (C++), ``octave`` (Oct
 ``mathics3`` (the ``ports`` extra). Its harness ``ft_mathics.py`` runs inside the sandbox's child
 itself (:meth:`Toolchain.inproc`): in ``flowtrack grade`` the child is forked from a zygote that
 loaded the interpreter and built one pristine set of definitions before any student code existed
-(``MATHICS_ALLOWED`` in :mod:`.exercises`), so an item starts Mathics3 in milliseconds, not in the
-~3 s (~10 s on a busy machine) of a fresh interpreter; each exercise's child is a fresh fork, so no
+(``MATHICS_ALLOWED`` in :mod:`flowtrack_course.grading.languages.exercises`), so an item starts
+Mathics3 in milliseconds, not in the ~3 s (~10 s on a busy machine) of a fresh interpreter; each exercise's child is a fresh fork, so no
 student's definitions reach another exercise or another student. Every other language's build and
 run are processes the child starts (``Sandbox(spawn=True)``).
 
