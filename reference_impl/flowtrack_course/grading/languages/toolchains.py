@@ -24,9 +24,10 @@ Debian packages: ``g++ libeigen3-dev nlohmann-json3-dev`` (C++), ``octave`` (Oct
 itself (:meth:`Toolchain.inproc`): in ``flowtrack grade`` the child is forked from a zygote that
 loaded the interpreter and built one pristine set of definitions before any student code existed
 (``MATHICS_ALLOWED`` in :mod:`flowtrack_course.grading.languages.exercises`), so an item starts
-Mathics3 in milliseconds, not in the ~3 s (~10 s on a busy machine) of a fresh interpreter; each exercise's child is a fresh fork, so no
-student's definitions reach another exercise or another student. Every other language's build and
-run are processes the child starts (``Sandbox(spawn=True)``).
+Mathics3 in milliseconds, not in the ~3 s (~10 s on a busy machine) of a fresh interpreter; each
+exercise's child is a fresh fork, so no student's definitions reach another exercise or another
+student. Every other language's build and run are processes the child starts
+(``Sandbox(spawn=True)``).
 
 CPU seconds per item measured by ``benchmarks/bench_grading.py --languages`` (3 students: solution,
 stub, partial; the grader's own start-up included): C++ ~1.4 (compiling the student's Eigen code:
