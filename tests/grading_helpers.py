@@ -8,17 +8,17 @@ from flowtrack_course.grading.exercises import plain_data
 from flowtrack_course.grading.spec import Outcome
 
 
-class RecordingSandbox:
-    """Sandbox stand-in for ``run_exercise``: records the calls it is sent and echoes their argument.
+class StandInSandbox:
+    """Base of the sandbox stand-ins for ``run_exercise``: no process, no student code run.
 
-    ``sent`` holds ``(function, plain data of the arguments)`` of every call since the caller last
-    emptied it; nothing of the student's code is run (what is checked is the inputs sent).
+    Subclasses set :attr:`isolation` and define ``run(calls, timeout) -> list[Outcome]``; the
+    constructor takes the answer cells (``[(grade_id, source), ...]``) and ignores the limits.
     """
 
-    sent: ClassVar[list[tuple[str, list]]] = []
+    isolation = "stand-in"
 
     def __init__(self, cells, **kwargs):
-        self.isolation = "recording"
+        self.cells = list(cells)
         self.cell_errors: dict[str, str] = {}
 
     def __enter__(self):
@@ -26,6 +26,17 @@ class RecordingSandbox:
 
     def __exit__(self, *exc):
         return False
+
+
+class RecordingSandbox(StandInSandbox):
+    """Sandbox stand-in for ``run_exercise``: records the calls it is sent and echoes their argument.
+
+    ``sent`` holds ``(function, plain data of the arguments)`` of every call since the caller last
+    emptied it; nothing of the student's code is run (what is checked is the inputs sent).
+    """
+
+    sent: ClassVar[list[tuple[str, list]]] = []
+    isolation = "recording"
 
     def run(self, calls, timeout):
         self.sent.extend((c.function, plain_data(list(c.args))) for c in calls)

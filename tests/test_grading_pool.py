@@ -22,7 +22,7 @@ from flowtrack_course.grading.grade import grade_class, run_exercise
 from flowtrack_course.grading.release import release_notebook
 from flowtrack_course.grading.sandbox import Limits, Sandbox, SandboxPool
 from flowtrack_course.grading.spec import Call, Exercise, GradedTest, Outcome, public_seed, student_seed
-from grading_helpers import use_sandbox_mode
+from grading_helpers import StandInSandbox, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -258,22 +258,12 @@ def _memo_exercise(counts: dict, scored: list) -> Exercise:
     return Exercise("memo_ex", "memo", "memo.ipynb", ("answer",), (), tests)
 
 
-class _Rounding:
+class _Rounding(StandInSandbox):
     """Sandbox stand-in: a student's answer cell ``DIGITS = n`` answers ``f(x)`` with ``round(x, n)``."""
 
-    def __init__(self, cells, **kwargs):
-        self.digits = int(cells[0][1].split("=")[1])
-        self.isolation = "stand-in"
-        self.cell_errors: dict[str, str] = {}
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
     def run(self, calls, timeout):
-        return [Outcome(True, round(c.args[0], self.digits)) for c in calls]
+        digits = int(self.cells[0][1].split("=")[1])
+        return [Outcome(True, round(c.args[0], digits)) for c in calls]
 
 
 def test_public_tests_are_built_once_and_each_distinct_answer_scored_once(tmp_path):
