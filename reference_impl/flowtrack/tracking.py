@@ -18,7 +18,9 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
    - every unassigned detection starts a *tentative* track (position = detection, velocity = the
      detection's scene-flow velocity if given, else 0 with a large variance);
    - a track becomes *confirmed* once it has ``min_hits`` assigned detections (the birth detection
-     counts as the first); a tentative track is deleted at its first miss;
+     counts as the first; :class:`HitCountConfirmer`), or, with :class:`SequentialScoreConfirmer`,
+     once its log-likelihood ratio of "object" against "clutter" passes Wald's threshold; a
+     tentative track is deleted at its first miss;
    - a confirmed track without a detection is *coasting* (occluded): it is only predicted. It is
      deleted when its consecutive misses exceed ``max_misses``, i.e. at the ``max_misses + 1``-th
      consecutive miss; an occlusion of up to ``max_misses`` frames keeps the track and its id.
@@ -45,6 +47,10 @@ associator         ``associate(z_pred, S, detections) -> (matches (K,2), unmatch
 updater            ``update(kf, detections, matches) -> None``
 initiator          ``initiate(detections (k,d), velocities (k,d) or None) -> (x0 (k,n), P0 (k,n,n))``
 deleter            ``delete(hits (M,), misses (M,), confirmed (M,)) -> bool mask (M,)``
+confirmer          ``initial_scores(k) -> (k,)``; ``update_scores(scores (M,), matched (K,),
+                   log_likelihood (K,), has_velocity (K,), missed) -> (M,)``;
+                   ``decide(scores (M,), hits (M,)) -> (confirm (M,), reject (M,))``;
+                   ``needs_likelihood`` (bool)
 =================  =========================================================================
 
 Examples
@@ -75,12 +81,15 @@ from .kalman import BatchKalmanFilter, constant_velocity_model
 __all__ = [
     "GNNAssociator",
     "GreedyAssociator",
+    "HitCountConfirmer",
     "KalmanPredictor",
     "KalmanUpdater",
     "MissCountDeleter",
     "MultiObjectTracker",
+    "SequentialScoreConfirmer",
     "SingleDetectionInitiator",
     "Track",
+    "pair_log_likelihood",
 ]
 
 STATUSES = ("tentative", "confirmed", "coasting")
@@ -301,6 +310,160 @@ class MissCountDeleter:
         return ((misses > 0) & ~confirmed) | (misses > self.max_misses)
 
 
+
+class HitCountConfirmer:
+    """Confirm a track once it has ``min_hits`` assigned detections (the birth detection included).
+
+    The tracker's default confirmation (M-of-M logic with M = ``min_hits``, as SORT). It keeps no
+    score (``needs_likelihood = False``; the scores stay 0) and never rejects a track: a tentative
+    track ends through the deleter (at its first miss).
+    """
+
+    needs_likelihood = False
+
+    def __init__(self, min_hits: int = 2):
+        self.min_hits = positive_int(min_hits, "min_hits")
+
+    def initial_scores(self, k: int) -> np.ndarray:
+        return np.zeros(k)
+
+    def update_scores(self, scores, matched, log_likelihood, has_velocity, missed) -> np.ndarray:
+        return scores
+
+    def decide(self, scores: np.ndarray, hits: np.ndarray):
+        return hits >= self.min_hits, np.zeros(hits.shape, dtype=bool)
+
+
+class SequentialScoreConfirmer:
+    r"""Confirm a track by its sequential log-likelihood-ratio score (Wald's SPRT).
+
+    The track score of Blackman and Popoli (*Design and Analysis of Modern Tracking Systems*, 1999,
+    §6.2; Stone Soup's score-based initiators): the log of the likelihood ratio of "this sequence of
+    detections comes from one object" (:math:`H_1`) against "it is clutter or unrelated new objects"
+    (:math:`H_0`), accumulated frame by frame. At birth :math:`L_0 = \ln(\beta_{NT}/\beta_{FT})`
+    (``birth_log_ratio``: the ratio of new-object to clutter density, 0 when they are the same
+    :math:`\lambda_c`, as in the association). Each later frame adds
+
+    .. math::  \Delta L = \begin{cases}
+               \ln P_D + \ln \mathcal N(z; \hat z, S) - \ln \lambda_c & \text{detected (matched)},\\
+               \ln (1 - P_D) & \text{missed,}
+               \end{cases}
+
+    the same terms as the association's :func:`flowtrack.association.nllr_cost`
+    (:math:`\Delta L = -C_{ij} + \ln(1 - P_D)` for a match): :math:`\mathcal N(z; \hat z, S)` is the
+    predicted density of the detection over its measured components (position, and velocity when
+    the detection carries scene flow, then :math:`\lambda_c` = ``clutter_density`` :math:`\times`
+    ``velocity_clutter_density``). Wald's test with a false-confirmation probability :math:`\alpha`
+    (``false_confirm``: a clutter sequence is confirmed) and a missed-confirmation probability
+    :math:`\beta` (``missed_confirm``: an object's sequence is rejected) confirms when
+
+    .. math::  L \ge T_c = \ln\frac{1 - \beta}{\alpha}
+
+    and rejects (deletes the tentative track) when :math:`L \le T_d = \ln\frac{\beta}{1 - \alpha}`;
+    Wald's inequalities bound the error rates by :math:`\alpha/(1-\beta)` and :math:`\beta/(1-\alpha)`
+    when the two hypotheses' models hold. A confirmed track is not rejected again (the deleter ends
+    it). A noise cluster that is detected again nearby, but whose velocity jumps from frame to frame,
+    gets large velocity innovations and does not accumulate score; an object confirms as soon as
+    its first detections agree with its own prediction.
+
+    Parameters
+    ----------
+    p_detect : float
+        :math:`P_D`, ``0 < p_detect < 1``.
+    clutter_density : float
+        :math:`\lambda_c` of the position (per m^dim) (> 0).
+    velocity_clutter_density : float
+        Density of a clutter detection's velocity (per (m/s)^dim) (> 0), for detections with a
+        velocity; default 1.
+    false_confirm, missed_confirm : float
+        :math:`\alpha` and :math:`\beta`, each in (0, 1) with :math:`\alpha + \beta < 1`.
+    birth_log_ratio : float
+        :math:`L_0`, default 0.
+
+    Attributes
+    ----------
+    confirm_threshold, reject_threshold : float
+        :math:`T_c` and :math:`T_d`.
+
+    Examples
+    --------
+    >>> c = SequentialScoreConfirmer(p_detect=0.9, clutter_density=1.0, false_confirm=0.01,
+    ...                              missed_confirm=0.1)
+    >>> round(c.confirm_threshold, 4), round(c.reject_threshold, 4)   # ln(0.9 / 0.01), ln(0.1 / 0.99)
+    (4.4998, -2.2925)
+    >>> s = c.update_scores(c.initial_scores(1), np.array([0]), np.array([5.0]), np.array([False]),
+    ...                     np.array([], dtype=int))
+    >>> round(float(s[0]), 4)                                          # ln 0.9 + 5 - ln 1
+    4.8946
+    >>> [m.tolist() for m in c.decide(s, np.array([2]))]
+    [[True], [False]]
+    """
+
+    needs_likelihood = True
+
+    def __init__(self, p_detect: float, clutter_density: float, velocity_clutter_density: float = 1.0,
+                 false_confirm: float = 1e-3, missed_confirm: float = 0.1, birth_log_ratio: float = 0.0):
+        self.p_detect = probability(p_detect, "p_detect")
+        self.clutter_density = positive(clutter_density, "clutter_density")
+        self.velocity_clutter_density = positive(velocity_clutter_density, "velocity_clutter_density")
+        self.false_confirm = probability(false_confirm, "false_confirm")
+        self.missed_confirm = probability(missed_confirm, "missed_confirm")
+        if self.false_confirm + self.missed_confirm >= 1.0:
+            raise ValueError("false_confirm + missed_confirm must be < 1, got "
+                             f"{self.false_confirm} + {self.missed_confirm}")
+        self.birth_log_ratio = float(birth_log_ratio)
+        if not np.isfinite(self.birth_log_ratio):
+            raise ValueError("birth_log_ratio must be finite")
+        self.confirm_threshold = float(np.log((1.0 - self.missed_confirm) / self.false_confirm))
+        self.reject_threshold = float(np.log(self.missed_confirm / (1.0 - self.false_confirm)))
+
+    def initial_scores(self, k: int) -> np.ndarray:
+        """:math:`L_0` for ``k`` newborn tracks, shape (k,)."""
+        return np.full(k, self.birth_log_ratio)
+
+    def update_scores(self, scores, matched, log_likelihood, has_velocity, missed) -> np.ndarray:
+        r"""Add :math:`\Delta L` to the rows ``matched`` (with :math:`\ln\mathcal N` = ``log_likelihood``,
+        shape (K,)) and ``missed``; return the new scores (M,)."""
+        out = np.array(scores, dtype=float, copy=True)
+        lam = np.where(has_velocity, self.clutter_density * self.velocity_clutter_density, self.clutter_density)
+        out[matched] += np.log(self.p_detect) + log_likelihood - np.log(lam)
+        out[missed] += np.log1p(-self.p_detect)
+        return out
+
+    def decide(self, scores: np.ndarray, hits: np.ndarray):
+        """``(confirm, reject)`` masks (M,): :math:`L \\ge T_c`, :math:`L \\le T_d`."""
+        return scores >= self.confirm_threshold, scores <= self.reject_threshold
+
+
+def pair_log_likelihood(z_pred, S, Z, matches) -> np.ndarray:
+    r""":math:`\ln \mathcal N(z_j; \hat z_i, S_{ij})` over the measured components of each matched pair.
+
+    Parameters
+    ----------
+    z_pred : numpy.ndarray, shape (M, m)
+    S : numpy.ndarray, shape (M, m, m) or (M, N, m, m)
+    Z : numpy.ndarray, shape (N, m)
+        NaN marks unmeasured components (only the measured ones count: the marginal density).
+    matches : numpy.ndarray of int, shape (K, 2)
+        ``(track row, detection row)`` pairs.
+
+    Returns
+    -------
+    numpy.ndarray, shape (K,)
+        :math:`-\tfrac12\left(d^2 + \ln\det(2\pi S_{oo})\right)` per pair.
+    """
+    K = matches.shape[0]
+    out = np.empty(K)
+    for k, (i, j) in enumerate(matches.tolist()):
+        z = Z[j]
+        o = ~np.isnan(z)
+        Sij = S[i, j] if S.ndim == 4 else S[i]
+        Soo = Sij[np.ix_(o, o)]
+        L = np.linalg.cholesky(Soo)
+        w = np.linalg.solve(L, z[o] - z_pred[i, o])
+        out[k] = -0.5 * (w @ w + 2.0 * np.log(np.diag(L)).sum() + o.sum() * np.log(2.0 * np.pi))
+    return out
+
 # ----------------------------------------------------------------------------------------------------
 # tracker
 # ----------------------------------------------------------------------------------------------------
@@ -366,11 +529,13 @@ class MultiObjectTracker:
     a :class:`flowtrack.motion.MotionBatchFilter` and its own association and update (the
     ``predictor``, ``associator`` and ``updater`` parts are then not used; ``initiator`` and
     ``deleter`` are).
-    predictor, associator, updater, initiator, deleter : optional
+    predictor, associator, updater, initiator, deleter, confirmer : optional
         Replacement parts (see the module docstring); defaults :class:`KalmanPredictor`,
         :class:`GNNAssociator` ``(gate_prob)``, :class:`KalmanUpdater`,
-        :class:`SingleDetectionInitiator`, :class:`MissCountDeleter` ``(max_misses)``. A custom
-        associator brings its own gate (``gate_prob`` is then unused), a custom deleter its own rule.
+        :class:`SingleDetectionInitiator`, :class:`MissCountDeleter` ``(max_misses)``,
+        :class:`HitCountConfirmer` ``(min_hits)``. A custom associator brings its own gate
+        (``gate_prob`` is then unused), a custom deleter or confirmer its own rule (``min_hits`` is
+        then unused); :class:`SequentialScoreConfirmer` confirms by the track score.
 
     Attributes
     ----------
@@ -416,6 +581,7 @@ class MultiObjectTracker:
         updater=None,
         initiator=None,
         deleter=None,
+        confirmer=None,
         max_history=None,
         velocity_update=False,
         velocity_cov=None,
@@ -446,6 +612,7 @@ class MultiObjectTracker:
             else SingleDetectionInitiator(R, velocity_var=velocity_var, flow_velocity_var=flow_velocity_var)
         )
         self.deleter = deleter if deleter is not None else MissCountDeleter(self.max_misses)
+        self.confirmer = confirmer if confirmer is not None else HitCountConfirmer(self.min_hits)
         n = 2 * self.dim
         self.kf = BatchKalmanFilter(F, H, Q, R, np.zeros((0, n)), np.eye(n))
         self._ids = np.zeros(0, dtype=np.int64)
@@ -453,6 +620,7 @@ class MultiObjectTracker:
         self._misses = np.zeros(0, dtype=np.int64)
         self._age = np.zeros(0, dtype=np.int64)
         self._confirmed = np.zeros(0, dtype=bool)
+        self._scores = np.zeros(0)
         self._next_id = 0
         self.frame = -1
         # one record per frame: (frame, ids (M,), x (M,n), P (M,n,n), status codes (M,))
@@ -529,23 +697,35 @@ class MultiObjectTracker:
             matches = np.asarray(matches, dtype=np.intp).reshape(-1, 2)
             unmatched_tracks = np.asarray(unmatched_tracks, dtype=np.intp)
             unmatched_dets = np.asarray(unmatched_dets, dtype=np.intp)
+            Zj, has_v = Z, np.zeros(Z.shape[0], dtype=bool)
+            if self.confirmer.needs_likelihood:
+                z_pred, S = np.array(z_pred), np.array(S)  # the prior, kept through the update
             self.updater.update(kf, Z, matches)
         else:
-            matches, unmatched_tracks, unmatched_dets = self._flow.predict_associate_update(Z, V, Rv)
-        # 4. bookkeeping: hits, misses, confirmation
+            (matches, unmatched_tracks, unmatched_dets), (z_pred, S, Zj, has_v) = \
+                self._flow.predict_associate_update(Z, V, Rv)
+        # 4. bookkeeping: hits, misses, score, confirmation
         matched = matches[:, 0]
         self._hits[matched] += 1
         self._misses[matched] = 0
         self._misses[unmatched_tracks] += 1
         self._age += 1
-        self._confirmed |= self._hits >= self.min_hits
-        # deletions (occlusions beyond max_misses, tentative tracks that missed)
+        confirmer = self.confirmer
+        if confirmer.needs_likelihood:
+            loglik = pair_log_likelihood(z_pred, S, Zj, matches)  # the prior's predicted density
+            self._scores = confirmer.update_scores(self._scores, matched, loglik, has_v[matches[:, 1]],
+                                                   unmatched_tracks)
+        confirm, reject = confirmer.decide(self._scores, self._hits)
+        self._confirmed |= confirm
+        # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
         dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
+        dead |= reject & ~self._confirmed
         if dead.any():
             keep = ~dead
             kf.keep(keep)
-            self._ids, self._hits, self._misses, self._age, self._confirmed = (
-                a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed)
+            self._ids, self._hits, self._misses, self._age, self._confirmed, self._scores = (
+                a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed,
+                                  self._scores)
             )
         # births from unassigned detections
         if unmatched_dets.size:
@@ -559,7 +739,10 @@ class MultiObjectTracker:
             self._hits = np.concatenate([self._hits, np.ones(k, dtype=np.int64)])
             self._misses = np.concatenate([self._misses, np.zeros(k, dtype=np.int64)])
             self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
-            self._confirmed = np.concatenate([self._confirmed, np.full(k, self.min_hits <= 1)])
+            scores0 = confirmer.initial_scores(k)
+            self._scores = np.concatenate([self._scores, scores0])
+            self._confirmed = np.concatenate(
+                [self._confirmed, confirmer.decide(scores0, np.ones(k, dtype=np.int64))[0]])
         # record and report
         xs = kf.x.copy()
         Ps = kf.P.copy()
@@ -596,6 +779,12 @@ class MultiObjectTracker:
             out.append((frame, [Track(t, xs[k], Ps[k], STATUSES[c], hits[k], misses[k], age[k])
                                 for k, (t, c) in enumerate(zip(ids.tolist(), codes.tolist()))]))
         return out
+
+    @property
+    def scores(self) -> dict[int, float]:
+        """Each live track's confirmation score after the last :meth:`step` (0 with
+        :class:`HitCountConfirmer`; the log-likelihood ratio with :class:`SequentialScoreConfirmer`)."""
+        return dict(zip(self._ids.tolist(), self._scores.tolist()))
 
     @property
     def tracks(self) -> list[Track]:
@@ -759,7 +948,7 @@ class _FlowOptions:
             _, S, m = kf.joint_innovation(Z, V, Rv)
             has_v = m == 2 * d
             Zj = np.concatenate([Z, np.where(has_v[:, None], V, np.nan)], axis=1)
-            z_pred = kf.x[:, : 2 * d]
+            z_pred = kf.x[:, : 2 * d].copy()  # the prior (the update below changes kf.x)
         else:
             has_v = np.zeros(N, dtype=bool)
             Zj = Z
@@ -788,7 +977,7 @@ class _FlowOptions:
                 kf.update_joint(Zm, Vm, Rvm, mask)
             else:
                 kf.update_joint(Zm, None, None, mask)
-        return matches, ut, ud
+        return (matches, ut, ud), (z_pred, S, Zj, has_v)
 
     def birth_states(self, x0, P0, Rv):
         """Extend the initiator's ``[p, v]`` states: velocity covariance = the measured one, yaw rate 0."""
