@@ -425,7 +425,8 @@ class SequentialScoreConfirmer:
         r"""Add :math:`\Delta L` to the rows ``matched`` (with :math:`\ln\mathcal N` = ``log_likelihood``,
         shape (K,)) and ``missed``; return the new scores (M,)."""
         out = np.array(scores, dtype=float, copy=True)
-        lam = np.where(has_velocity, self.clutter_density * self.velocity_clutter_density, self.clutter_density)
+        lam_c = self.clutter_density
+        lam = np.where(has_velocity, lam_c * self.velocity_clutter_density, lam_c)
         out[matched] += np.log(self.p_detect) + log_likelihood - np.log(lam)
         out[missed] += np.log1p(-self.p_detect)
         return out

@@ -51,7 +51,7 @@ KINECT_SUBPIXEL = 8  #: disparity steps per pixel
 
 
 def kinect_sigma(Z):
-    r"""Axial depth noise of a Kinect v1, :math:`\sigma_z = 0.0012 + 0.0019 (Z - 0.4)^2` m (Nguyen et al. 2012).
+    r"""Axial depth noise of a Kinect v1, :math:`\sigma_z = 0.0012 + 0.0019 (Z - 0.4)^2` m (Nguyen 2012).
 
     Examples
     --------
