@@ -48,7 +48,8 @@ updater            ``update(kf, detections, matches) -> None``
 initiator          ``initiate(detections (k,d), velocities (k,d) or None) -> (x0 (k,n), P0 (k,n,n))``
 deleter            ``delete(hits (M,), misses (M,), confirmed (M,)) -> bool mask (M,)``
 confirmer          ``initial_scores(k) -> (k,)``; ``update_scores(scores (M,), matched (K,),
-                   log_likelihood (K,), has_velocity (K,), missed) -> (M,)``;
+                   log_likelihood (K,), has_velocity (K,), missed, velocities=None (K, d),
+                   velocity_covs=None (K, d, d)) -> (M,)``;
                    ``decide(scores (M,), hits (M,)) -> (confirm (M,), reject (M,))``;
                    ``needs_likelihood`` (bool)
 =================  =========================================================================
@@ -327,7 +328,8 @@ class HitCountConfirmer:
     def initial_scores(self, k: int) -> np.ndarray:
         return np.zeros(k)
 
-    def update_scores(self, scores, matched, log_likelihood, has_velocity, missed) -> np.ndarray:
+    def update_scores(self, scores, matched, log_likelihood, has_velocity, missed, velocities=None,
+                      velocity_covs=None) -> np.ndarray:
         return scores
 
     def decide(self, scores: np.ndarray, hits: np.ndarray):
@@ -353,7 +355,24 @@ class SequentialScoreConfirmer:
     (:math:`\Delta L = -C_{ij} + \ln(1 - P_D)` for a match): :math:`\mathcal N(z; \hat z, S)` is the
     predicted density of the detection over its measured components (position, and velocity when
     the detection carries scene flow, then :math:`\lambda_c` = ``clutter_density`` :math:`\times`
-    ``velocity_clutter_density``). Wald's test with a false-confirmation probability :math:`\alpha`
+    ``velocity_clutter_density``).
+
+    **Static clutter.** Clutter that comes out of a motion segmentation is not uniform in velocity:
+    it is static surface whose flow noise passed the speed threshold (depth-edge artefacts, flying
+    pixels), so its measured velocity is :math:`v \sim \mathcal N(0, \Sigma_c + R_v)`, with
+    :math:`\Sigma_c` = ``clutter_velocity_cov`` the flow noise of static surfaces and :math:`R_v` the
+    detection's own velocity covariance. With ``clutter_velocity_cov`` given, that density replaces
+    the constant ``velocity_clutter_density``:
+
+    .. math::  \lambda_c(z, v) = \lambda_c\,\mathcal N(v; 0, \Sigma_c + R_v),
+
+    so a detection moving no faster than the flow noise brings no evidence of an object from its
+    velocity (the ratio :math:`\mathcal N(v; \hat v, S_v) / \mathcal N(v; 0, \Sigma_c + R_v)` is about 1
+    for a track whose velocity is about 0), while an object moving well above the noise gains
+    :math:`\tfrac12 v^\top(\Sigma_c + R_v)^{-1}v` per frame. A static artefact detected at the same
+    place frame after frame then has to reach :math:`T_c` on its position term alone.
+
+    Wald's test with a false-confirmation probability :math:`\alpha`
     (``false_confirm``: a clutter sequence is confirmed) and a missed-confirmation probability
     :math:`\beta` (``missed_confirm``: an object's sequence is rejected) confirms when
 
@@ -374,7 +393,11 @@ class SequentialScoreConfirmer:
         :math:`\lambda_c` of the position (per m^dim) (> 0).
     velocity_clutter_density : float
         Density of a clutter detection's velocity (per (m/s)^dim) (> 0), for detections with a
-        velocity; default 1.
+        velocity; default 1. Not used with ``clutter_velocity_cov``.
+    clutter_velocity_cov : float or array_like, shape (dim, dim), optional
+        :math:`\Sigma_c`: static clutter's velocity covariance ((m/s)^2; a number means
+        :math:`\sigma^2 I`); the velocity clutter density is then
+        :math:`\mathcal N(v; 0, \Sigma_c + R_v)` per detection.
     false_confirm, missed_confirm : float
         :math:`\alpha` and :math:`\beta`, each in (0, 1) with :math:`\alpha + \beta < 1`.
     birth_log_ratio : float
@@ -402,7 +425,8 @@ class SequentialScoreConfirmer:
     needs_likelihood = True
 
     def __init__(self, p_detect: float, clutter_density: float, velocity_clutter_density: float = 1.0,
-                 false_confirm: float = 1e-3, missed_confirm: float = 0.1, birth_log_ratio: float = 0.0):
+                 false_confirm: float = 1e-3, missed_confirm: float = 0.1, birth_log_ratio: float = 0.0,
+                 clutter_velocity_cov=None):
         self.p_detect = probability(p_detect, "p_detect")
         self.clutter_density = positive(clutter_density, "clutter_density")
         self.velocity_clutter_density = positive(velocity_clutter_density, "velocity_clutter_density")
@@ -411,6 +435,18 @@ class SequentialScoreConfirmer:
         if self.false_confirm + self.missed_confirm >= 1.0:
             raise ValueError("false_confirm + missed_confirm must be < 1, got "
                              f"{self.false_confirm} + {self.missed_confirm}")
+        if clutter_velocity_cov is not None:
+            from ._validation import check_psd
+
+            cov = as_array(clutter_velocity_cov, "clutter_velocity_cov")
+            if cov.ndim == 0:
+                cov = nonnegative(float(cov), "clutter_velocity_cov")
+            else:
+                if cov.ndim != 2 or cov.shape[0] != cov.shape[1]:
+                    raise ValueError(f"clutter_velocity_cov must be a number or (dim, dim), got {cov.shape}")
+                check_psd(cov, "clutter_velocity_cov")
+            clutter_velocity_cov = cov
+        self.clutter_velocity_cov = clutter_velocity_cov
         self.birth_log_ratio = float(birth_log_ratio)
         if not np.isfinite(self.birth_log_ratio):
             raise ValueError("birth_log_ratio must be finite")
@@ -421,13 +457,32 @@ class SequentialScoreConfirmer:
         """:math:`L_0` for ``k`` newborn tracks, shape (k,)."""
         return np.full(k, self.birth_log_ratio)
 
-    def update_scores(self, scores, matched, log_likelihood, has_velocity, missed) -> np.ndarray:
+    def update_scores(self, scores, matched, log_likelihood, has_velocity, missed, velocities=None,
+                      velocity_covs=None) -> np.ndarray:
         r"""Add :math:`\Delta L` to the rows ``matched`` (with :math:`\ln\mathcal N` = ``log_likelihood``,
-        shape (K,)) and ``missed``; return the new scores (M,)."""
+        shape (K,)) and ``missed``; return the new scores (M,).
+
+        ``velocities`` (K, d) and ``velocity_covs`` (K, d, d), the matched detections' velocity
+        measurements and covariances, are needed (for the rows with ``has_velocity``) only with
+        ``clutter_velocity_cov``."""
         out = np.array(scores, dtype=float, copy=True)
-        lam_c = self.clutter_density
-        lam = np.where(has_velocity, lam_c * self.velocity_clutter_density, lam_c)
-        out[matched] += np.log(self.p_detect) + log_likelihood - np.log(lam)
+        log_lam = np.full(len(matched), np.log(self.clutter_density))
+        has_velocity = np.asarray(has_velocity, dtype=bool)
+        if self.clutter_velocity_cov is None:
+            log_lam[has_velocity] += np.log(self.velocity_clutter_density)
+        elif has_velocity.any():
+            if velocities is None or velocity_covs is None:
+                raise ValueError("clutter_velocity_cov needs the detections' velocities and velocity_covs")
+            v = np.asarray(velocities, dtype=float)[has_velocity]
+            d = v.shape[1]
+            cov = np.asarray(velocity_covs, dtype=float)[has_velocity] + (
+                self.clutter_velocity_cov * np.eye(d) if np.ndim(self.clutter_velocity_cov) == 0
+                else self.clutter_velocity_cov)
+            L = np.linalg.cholesky(cov)
+            w = np.linalg.solve(L, v[..., None])[..., 0]
+            log_lam[has_velocity] += -0.5 * ((w**2).sum(axis=1) + d * np.log(2.0 * np.pi)) - np.log(
+                np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+        out[matched] += np.log(self.p_detect) + log_likelihood - log_lam
         out[missed] += np.log1p(-self.p_detect)
         return out
 
@@ -714,8 +769,10 @@ class MultiObjectTracker:
         confirmer = self.confirmer
         if confirmer.needs_likelihood:
             loglik = pair_log_likelihood(z_pred, S, Zj, matches)  # the prior's predicted density
-            self._scores = confirmer.update_scores(self._scores, matched, loglik, has_v[matches[:, 1]],
-                                                   unmatched_tracks)
+            dets = matches[:, 1]
+            self._scores = confirmer.update_scores(
+                self._scores, matched, loglik, has_v[dets], unmatched_tracks,
+                velocities=None if V is None else V[dets], velocity_covs=None if Rv is None else Rv[dets])
         confirm, reject = confirmer.decide(self._scores, self._hits)
         self._confirmed |= confirm
         # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
