@@ -448,10 +448,6 @@ def flow_section(args) -> bool:
     return bool(ok_ids and ok_mota and ok_pred and ok_turn)
 
 
-if __name__ == "__main__":
-    sys.exit(main())
-
-
 # ----------------------------------------------------------------------------------------------------
 # track confirmation on Kinect-like depth
 # ----------------------------------------------------------------------------------------------------
@@ -525,3 +521,7 @@ def confirm_section(args) -> bool:
     ]
     publish("tracking_confirm", "\n".join(lines), args.quick)
     return ok
+
+
+if __name__ == "__main__":
+    sys.exit(main())
