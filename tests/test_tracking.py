@@ -697,7 +697,7 @@ class _KeepTentative:
         return np.zeros(hits.shape, dtype=bool)
 
 
-def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, Rv=None):
+def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, Rv=None, clutter_cov=None):
     """Brute-force score of one track born from frames[0]: a hand-written Kalman filter and scipy's
     multivariate_normal density of each detection (or ln(1 - P_D) for a None frame)."""
     from scipy.stats import multivariate_normal
@@ -721,7 +721,8 @@ def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, R
             else:
                 H, z = np.eye(2 * d), np.concatenate([frames[t], velocities[t]])
                 Rm = np.block([[r * np.eye(d), np.zeros((d, d))], [np.zeros((d, d)), Rv]])
-                lam_t = lam[0] * lam[1]
+                lam_t = lam[0] * (lam[1] if clutter_cov is None else
+                                  multivariate_normal(np.zeros(d), clutter_cov + Rv).pdf(velocities[t]))
             S = H @ P @ H.T + Rm
             L += np.log(pd) + multivariate_normal(H @ x, S).logpdf(z) - np.log(lam_t)
             K = P @ H.T @ np.linalg.inv(S)
@@ -731,16 +732,18 @@ def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, R
     return np.array(scores)
 
 
-@pytest.mark.parametrize("with_velocity", [False, True])
-def test_sequential_score_against_hand_filter(with_velocity):
+@pytest.mark.parametrize("with_velocity, static_clutter", [(False, False), (True, False), (True, True)])
+def test_sequential_score_against_hand_filter(with_velocity, static_clutter):
     from flowtrack.tracking import SequentialScoreConfirmer
 
     dt, q, r, vv, pd, lam, lam_v = 0.5, 0.3, 0.04, 1.0, 0.8, 0.02, 0.5
     frames = [np.array([0.0, 1.0]), np.array([0.45, 1.1]), None, np.array([1.6, 1.2]), np.array([2.0, 1.35])]
     vel = [np.array([1.0, 0.2]), np.array([0.9, 0.25]), None, np.array([1.1, 0.1]), np.array([0.8, 0.3])]
     Rv = np.array([[0.05, 0.01], [0.01, 0.08]])
+    Sc = np.array([[0.02, 0.005], [0.005, 0.03]]) if static_clutter else None
     conf = SequentialScoreConfirmer(p_detect=pd, clutter_density=lam, velocity_clutter_density=lam_v,
-                                    false_confirm=1e-12, missed_confirm=1e-12)  # never decides
+                                    false_confirm=1e-12, missed_confirm=1e-12,  # never decides
+                                    clutter_velocity_cov=Sc)
     opts = dict(velocity_update=True, velocity_cov=Rv) if with_velocity else {}
     trk = MultiObjectTracker(dt, q, r, dim=2, velocity_var=vv, confirmer=conf, deleter=_KeepTentative(),
                              **opts)
@@ -753,7 +756,7 @@ def test_sequential_score_against_hand_filter(with_velocity):
         else:
             trk.step(z[None])
         got.append(trk.scores[0])
-    want = _kf_score_oracle(frames, dt, q, r, vv, pd, (lam, lam_v), vel if with_velocity else None, Rv)
+    want = _kf_score_oracle(frames, dt, q, r, vv, pd, (lam, lam_v), vel if with_velocity else None, Rv, Sc)
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
     assert [t.status for t in trk.tracks] == ["tentative"]
 

@@ -112,8 +112,9 @@ class Track:
     P : numpy.ndarray, shape (2*dim, 2*dim)
         Posterior covariance (read-only).
     status : str
-        ``"tentative"`` (not yet ``min_hits`` detections), ``"confirmed"`` (confirmed and
-        detected this frame) or ``"coasting"`` (confirmed, missed this frame: predicted only).
+        ``"tentative"`` (not yet confirmed: ``min_hits`` detections, or the confirmer's rule),
+        ``"confirmed"`` (confirmed and detected this frame) or ``"coasting"`` (confirmed, missed this
+        frame: predicted only).
     hits : int
         Number of detections assigned to the track, the birth detection included.
     misses : int
