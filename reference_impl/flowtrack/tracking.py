@@ -508,6 +508,13 @@ def pair_log_likelihood(z_pred, S, Z, matches) -> np.ndarray:
     -------
     numpy.ndarray, shape (K,)
         :math:`-\tfrac12\left(d^2 + \ln\det(2\pi S_{oo})\right)` per pair.
+
+    Examples
+    --------
+    >>> z_pred, S = np.zeros((1, 2)), np.diag([4.0, 1.0])[None]
+    >>> Z = np.array([[2.0, np.nan]])           # the second component unmeasured
+    >>> pair_log_likelihood(z_pred, S, Z, np.array([[0, 0]])).round(4)   # -(1 + ln(8 pi)) / 2
+    array([-2.1121])
     """
     K = matches.shape[0]
     out = np.empty(K)
