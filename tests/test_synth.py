@@ -282,3 +282,72 @@ def test_crowded_scenes_are_placed_without_collisions(kwargs):
 def test_an_impossible_scene_says_what_to_change():
     with pytest.raises(RuntimeError, match="fewer objects"):
         make_scene(n_objects=12, n_frames=12, image_size=(30, 40), seed=0)
+
+
+# ----------------------------------------------------------------------------- Kinect-like depth
+
+
+def _step_image():
+    depth = np.full((60, 80), 2.0)
+    depth[20:40, 20:50] = 1.0  # a near box in front of a far wall
+    depth[:3] = 0.0  # no measurement
+    return depth
+
+
+def test_kinect_quantisation_is_disparity_rounding():
+    from flowtrack.synth import kinect_depth
+
+    depth = np.linspace(0.5, 3.5, 400).reshape(20, 20)
+    out = kinect_depth(depth, np.random.default_rng(0), noise=False, flying_pixels=False, edge_holes=False)
+    k = 8 * 580.0 * 0.075  # 1/8 px disparity steps, f = 580 px, b = 7.5 cm
+    disparity = k / out
+    np.testing.assert_allclose(disparity, np.round(disparity), atol=1e-9)
+    assert np.all(np.abs(out - depth) <= 0.5 * depth**2 / k * (1 + 1e-6) + 1e-12)  # half a step
+
+
+def test_kinect_noise_matches_nguyen_model():
+    from flowtrack.synth import kinect_depth, kinect_sigma
+
+    depth = np.full((200, 200), 2.5)
+    out = kinect_depth(depth, np.random.default_rng(1), quantise=False, flying_pixels=False,
+                       edge_holes=False, noise_floor=0.002)
+    want = np.sqrt(kinect_sigma(2.5) ** 2 - 0.002**2)  # the image's own 2 mm are already there
+    n = depth.size
+    assert abs(out.std() / want - 1) < 4 / np.sqrt(2 * n)  # std of a sample std: sigma / sqrt(2n)
+    assert abs(out.mean() - 2.5) < 4 * want / np.sqrt(n)
+
+
+def test_kinect_flying_pixels_and_holes_only_at_edges():
+    from flowtrack.synth import kinect_depth
+
+    depth = _step_image()
+    rng = np.random.default_rng(2)
+    fly = kinect_depth(depth, rng, noise=False, quantise=False, edge_holes=False)
+    changed = fly != depth
+    assert changed.any()
+    # only pixels next to the 1 m jump move, and they lie between the two depths
+    near = np.zeros_like(changed)
+    near[19:41, 19:51] = True
+    near[21:39, 21:49] = False
+    assert not (changed & ~near).any()
+    assert ((fly[changed] > 1.0) & (fly[changed] < 2.0)).all()
+    holes = kinect_depth(depth, rng, noise=False, quantise=False, flying_pixels=False, edge_drop=0.3)
+    gy, gx = np.gradient(depth)
+    edge = np.hypot(gx, gy) > 0.02
+    dropped = (holes == 0) & (depth > 0)
+    assert not (dropped & ~edge).any()
+    frac, n = dropped[edge & (depth > 0)].mean(), int((edge & (depth > 0)).sum())
+    assert abs(frac - 0.3) < 4 * np.sqrt(0.3 * 0.7 / n)
+    assert (kinect_depth(depth, rng)[:3] == 0).all()  # no measurement stays none
+
+
+def test_kinect_bad_input():
+    from flowtrack.synth import kinect_depth
+
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match="depth"):
+        kinect_depth(np.ones(5), rng)
+    with pytest.raises(ValueError, match="depth"):
+        kinect_depth(np.full((3, 3), np.nan), rng)
+    with pytest.raises(ValueError, match="edge_drop"):
+        kinect_depth(np.ones((3, 3)), rng, edge_drop=1.5)

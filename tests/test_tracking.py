@@ -685,3 +685,167 @@ def test_tracking_ablation_keys_and_flow_helping_on_noisy_positions():
         assert {"mota", "idf1", "id_switches", "prediction_error_mm"} <= set(v)
     assert res["flow_aided"]["prediction_error_mm"] < 0.8 * res["position_only"]["prediction_error_mm"]
     assert res["flow_aided"]["id_switches"] == 0
+
+
+# ----------------------------------------------------------------------------- sequential track score (SPRT)
+
+
+class _KeepTentative:
+    """A deleter that never deletes a tentative track (so the score alone decides) nor a confirmed one."""
+
+    def delete(self, hits, misses, confirmed):
+        return np.zeros(hits.shape, dtype=bool)
+
+
+def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, Rv=None, clutter_cov=None):
+    """Brute-force score of one track born from frames[0]: a hand-written Kalman filter and scipy's
+    multivariate_normal density of each detection (or ln(1 - P_D) for a None frame)."""
+    from scipy.stats import multivariate_normal
+
+    d = len(frames[0])
+    F = np.block([[np.eye(d), dt * np.eye(d)], [np.zeros((d, d)), np.eye(d)]])
+    G = np.vstack([0.5 * dt**2 * np.eye(d), dt * np.eye(d)])
+    Q = q * G @ G.T
+    x = np.concatenate([frames[0], np.zeros(d) if velocities is None else velocities[0]])
+    P = np.zeros((2 * d, 2 * d))
+    P[:d, :d] = r * np.eye(d)
+    P[d:, d:] = velocity_var * np.eye(d) if velocities is None else Rv
+    scores, L = [0.0], 0.0
+    for t in range(1, len(frames)):
+        x, P = F @ x, F @ P @ F.T + Q
+        if frames[t] is None:
+            L += np.log(1.0 - pd)
+        else:
+            if velocities is None:
+                H, z, Rm, lam_t = np.hstack([np.eye(d), np.zeros((d, d))]), frames[t], r * np.eye(d), lam[0]
+            else:
+                H, z = np.eye(2 * d), np.concatenate([frames[t], velocities[t]])
+                Rm = np.block([[r * np.eye(d), np.zeros((d, d))], [np.zeros((d, d)), Rv]])
+                lam_t = lam[0] * (lam[1] if clutter_cov is None else
+                                  multivariate_normal(np.zeros(d), clutter_cov + Rv).pdf(velocities[t]))
+            S = H @ P @ H.T + Rm
+            L += np.log(pd) + multivariate_normal(H @ x, S).logpdf(z) - np.log(lam_t)
+            K = P @ H.T @ np.linalg.inv(S)
+            x = x + K @ (z - H @ x)
+            P = (np.eye(2 * d) - K @ H) @ P
+        scores.append(L)
+    return np.array(scores)
+
+
+@pytest.mark.parametrize("with_velocity, static_clutter", [(False, False), (True, False), (True, True)])
+def test_sequential_score_against_hand_filter(with_velocity, static_clutter):
+    from flowtrack.tracking import SequentialScoreConfirmer
+
+    dt, q, r, vv, pd, lam, lam_v = 0.5, 0.3, 0.04, 1.0, 0.8, 0.02, 0.5
+    frames = [np.array([0.0, 1.0]), np.array([0.45, 1.1]), None, np.array([1.6, 1.2]), np.array([2.0, 1.35])]
+    vel = [np.array([1.0, 0.2]), np.array([0.9, 0.25]), None, np.array([1.1, 0.1]), np.array([0.8, 0.3])]
+    Rv = np.array([[0.05, 0.01], [0.01, 0.08]])
+    Sc = np.array([[0.02, 0.005], [0.005, 0.03]]) if static_clutter else None
+    conf = SequentialScoreConfirmer(p_detect=pd, clutter_density=lam, velocity_clutter_density=lam_v,
+                                    false_confirm=1e-12, missed_confirm=1e-12,  # never decides
+                                    clutter_velocity_cov=Sc)
+    opts = dict(velocity_update=True, velocity_cov=Rv) if with_velocity else {}
+    trk = MultiObjectTracker(dt, q, r, dim=2, velocity_var=vv, confirmer=conf, deleter=_KeepTentative(),
+                             **opts)
+    got = []
+    for z, v in zip(frames, vel):
+        if z is None:
+            trk.step(np.empty((0, 2)))
+        elif with_velocity:
+            trk.step(z[None], v[None])
+        else:
+            trk.step(z[None])
+        got.append(trk.scores[0])
+    want = _kf_score_oracle(frames, dt, q, r, vv, pd, (lam, lam_v), vel if with_velocity else None, Rv, Sc)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+    assert [t.status for t in trk.tracks] == ["tentative"]
+
+
+def test_sequential_score_thresholds_decide():
+    """Confirmed at the first frame whose (oracle) score reaches ln((1 - beta) / alpha); a tentative
+    track whose score falls to ln(beta / (1 - alpha)) is deleted."""
+    from flowtrack.tracking import SequentialScoreConfirmer
+
+    dt, q, r, vv, pd, lam = 1.0, 0.01, 0.01, 0.04, 0.9, 0.5
+    alpha, beta = 1e-3, 0.1
+    frames = [np.array([0.1 * t, 0.0]) for t in range(6)]
+    want = _kf_score_oracle(frames, dt, q, r, vv, pd, (lam, 1.0))
+    first = int(np.argmax(want >= np.log((1 - beta) / alpha)))
+    assert first >= 2  # the test needs a few frames before confirmation
+    trk = MultiObjectTracker(dt, q, r, dim=2, velocity_var=vv,
+                             confirmer=SequentialScoreConfirmer(pd, lam, false_confirm=alpha,
+                                                                missed_confirm=beta))
+    statuses = []
+    for z in frames:
+        trk.step(z[None])
+        statuses.append(trk.tracks[0].status)
+    assert statuses[first] == "confirmed" and set(statuses[:first]) == {"tentative"}
+    # rejection: misses only (deleter keeps it), ln(1 - pd) per frame, gone once <= ln(beta / (1 - alpha))
+    trk = MultiObjectTracker(dt, q, r, dim=2, deleter=_KeepTentative(),
+                             confirmer=SequentialScoreConfirmer(pd, lam, false_confirm=alpha,
+                                                                missed_confirm=beta))
+    trk.step(frames[0][None])
+    n_misses = int(np.ceil(np.log(beta / (1 - alpha)) / np.log(1 - pd)))
+    for k in range(1, n_misses + 1):
+        trk.step(np.empty((0, 2)))
+        assert (len(trk.tracks) == 1) == (k < n_misses)
+
+
+def test_sequential_score_error_rates_on_clutter_and_targets():
+    """Wald: on pure clutter (Poisson, uniform, the density the score assumes) the fraction of tracks
+    ever confirmed is <= alpha / (1 - beta); a true object's track is confirmed with probability
+    >= 1 - beta (each within three binomial standard deviations)."""
+    from flowtrack.tracking import SequentialScoreConfirmer
+
+    rng = np.random.default_rng(1)
+    A, mu, alpha, beta, pd, n_frames, runs = 4.0, 0.5, 0.05, 0.1, 0.9, 8, 300
+    lam = mu / A**2
+
+    def tracker():
+        c = SequentialScoreConfirmer(p_detect=pd, clutter_density=lam, false_confirm=alpha,
+                                     missed_confirm=beta)
+        return MultiObjectTracker(1.0, 0.01, 0.04, 2, velocity_var=0.25, confirmer=c,
+                                  deleter=_KeepTentative())
+
+    born = confirmed = 0
+    for _ in range(runs):
+        trk, ever = tracker(), set()
+        for _ in range(n_frames):
+            ever |= {t.id for t in trk.step(rng.uniform(0.0, A, (rng.poisson(mu), 2)))}
+        born += trk._next_id
+        confirmed += len(ever)
+    bound = alpha / (1 - beta)
+    assert born > 1000
+    assert confirmed / born <= bound + 3 * np.sqrt(bound * (1 - bound) / born)
+    hits = 0
+    for _ in range(runs):
+        trk, p, v, got = tracker(), np.array([2.0, 2.0]), rng.normal(0.0, 0.5, 2), False
+        for _ in range(n_frames):
+            Z = (p + rng.normal(0.0, 0.2, 2))[None] if rng.random() < pd else np.empty((0, 2))
+            p = p + v
+            got |= any(t.id == 0 for t in trk.step(Z))
+        hits += got
+    assert hits / runs >= 1 - beta - 3 * np.sqrt(beta * (1 - beta) / runs)
+
+
+def test_sequential_score_confirms_a_clean_object_like_min_hits_2():
+    from flowtrack.tracking import SequentialScoreConfirmer
+
+    conf = SequentialScoreConfirmer(p_detect=0.9, clutter_density=1.0)
+    trk = MultiObjectTracker(0.1, 0.1, 1e-4, dim=3, confirmer=conf, velocity_update=True)
+    v = np.array([0.1, 0.0, 0.0])
+    assert trk.step(np.array([[0.0, 0.0, 1.0]]), v[None]) == []
+    assert [t.status for t in trk.step(np.array([[0.01, 0.0, 1.0]]), v[None])] == ["confirmed"]
+
+
+def test_sequential_score_bad_input():
+    from flowtrack.tracking import HitCountConfirmer, SequentialScoreConfirmer
+
+    with pytest.raises(ValueError, match="false_confirm"):
+        SequentialScoreConfirmer(0.9, 1.0, false_confirm=0.5, missed_confirm=0.6)
+    with pytest.raises(ValueError, match="p_detect"):
+        SequentialScoreConfirmer(1.0, 1.0)
+    with pytest.raises(ValueError, match="clutter_density"):
+        SequentialScoreConfirmer(0.9, 0.0)
+    with pytest.raises(ValueError, match="min_hits"):
+        HitCountConfirmer(0)

@@ -97,6 +97,7 @@ __all__ = [
     "open3d_threads",
     "rgbd_cloud_flow",
     "scene_flow_and_clusters",
+    "track_confirmer",
     "subsample",
     "support_planes",
     "visible_centroid_velocities",
@@ -154,6 +155,49 @@ class PipelineConfig:
     #: ``C + k (u - v)(u - v)^T`` (:func:`visible_centroid_velocities`): k = 4 treats the gap between
     #: the visible centroid's velocity u and the material flow v as a two-standard-deviation error
     extent_change_inflation: float = 4.0
+    #: how a tentative track is confirmed: ``"score"`` by its sequential log-likelihood-ratio score
+    #: (:class:`flowtrack.tracking.SequentialScoreConfirmer`, :func:`track_confirmer`), ``"hits"`` by
+    #: ``min_hits`` detections (:class:`flowtrack.tracking.HitCountConfirmer`)
+    confirmation: str = "score"
+    track_p_detect: float = 0.9  #: detection probability P_D of the track score
+    #: clutter (false detection) density of the track score, per m³: about one false detection per
+    #: frame in the ~1 m³ the camera sees of the table
+    track_clutter_density: float = 1.0
+    #: Wald's alpha: probability that a clutter sequence is confirmed (per tentative track)
+    track_false_confirm: float = 1e-4
+    track_missed_confirm: float = 0.1  #: Wald's beta: probability that an object's sequence is rejected
+
+
+def track_confirmer(cfg: PipelineConfig):
+    r"""The tracker's confirmation part for ``cfg.confirmation`` (``"score"`` or ``"hits"``).
+
+    ``"score"``: :class:`flowtrack.tracking.SequentialScoreConfirmer` with :math:`P_D` =
+    ``track_p_detect``, :math:`\lambda_c` = ``track_clutter_density``, :math:`\alpha` =
+    ``track_false_confirm``, :math:`\beta` = ``track_missed_confirm`` and static clutter's velocity
+    covariance :math:`\Sigma_c = (s/2)^2 I` with :math:`s` = ``rgbd_min_speed``: the motion
+    clustering keeps points faster than :math:`s`, about two standard deviations of the flow noise
+    on static surfaces, so the clutter it lets through (depth-edge artefacts, flying pixels) moves
+    at :math:`\mathcal N(0, (s/2)^2 I)` plus its own measurement noise. ``"hits"``:
+    :class:`flowtrack.tracking.HitCountConfirmer` ``(min_hits)``.
+
+    Examples
+    --------
+    >>> c = track_confirmer(PipelineConfig())
+    >>> type(c).__name__, round(c.confirm_threshold, 2), c.clutter_velocity_cov
+    ('SequentialScoreConfirmer', 9.1, 0.0004)
+    >>> type(track_confirmer(PipelineConfig(confirmation="hits"))).__name__
+    'HitCountConfirmer'
+    """
+    from .tracking import HitCountConfirmer, SequentialScoreConfirmer
+
+    if cfg.confirmation == "hits":
+        return HitCountConfirmer(cfg.min_hits)
+    if cfg.confirmation != "score":
+        raise ValueError(f"confirmation must be 'score' or 'hits', got {cfg.confirmation!r}")
+    return SequentialScoreConfirmer(cfg.track_p_detect, cfg.track_clutter_density,
+                                    false_confirm=cfg.track_false_confirm,
+                                    missed_confirm=cfg.track_missed_confirm,
+                                    clutter_velocity_cov=(cfg.rgbd_min_speed / 2.0) ** 2)
 
 
 def subsample(n: int, max_points: int, rng: np.random.Generator) -> np.ndarray:

@@ -18,7 +18,9 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
    - every unassigned detection starts a *tentative* track (position = detection, velocity = the
      detection's scene-flow velocity if given, else 0 with a large variance);
    - a track becomes *confirmed* once it has ``min_hits`` assigned detections (the birth detection
-     counts as the first); a tentative track is deleted at its first miss;
+     counts as the first; :class:`HitCountConfirmer`), or, with :class:`SequentialScoreConfirmer`,
+     once its log-likelihood ratio of "object" against "clutter" passes Wald's threshold; a
+     tentative track is deleted at its first miss;
    - a confirmed track without a detection is *coasting* (occluded): it is only predicted. It is
      deleted when its consecutive misses exceed ``max_misses``, i.e. at the ``max_misses + 1``-th
      consecutive miss; an occlusion of up to ``max_misses`` frames keeps the track and its id.
@@ -45,6 +47,11 @@ associator         ``associate(z_pred, S, detections) -> (matches (K,2), unmatch
 updater            ``update(kf, detections, matches) -> None``
 initiator          ``initiate(detections (k,d), velocities (k,d) or None) -> (x0 (k,n), P0 (k,n,n))``
 deleter            ``delete(hits (M,), misses (M,), confirmed (M,)) -> bool mask (M,)``
+confirmer          ``initial_scores(k) -> (k,)``; ``update_scores(scores (M,), matched (K,),
+                   log_likelihood (K,), has_velocity (K,), missed, velocities=None (K, d),
+                   velocity_covs=None (K, d, d)) -> (M,)``;
+                   ``decide(scores (M,), hits (M,)) -> (confirm (M,), reject (M,))``;
+                   ``needs_likelihood`` (bool)
 =================  =========================================================================
 
 Examples
@@ -70,17 +77,21 @@ import numpy as np
 
 from ._validation import as_array, cholesky, nonnegative, positive, positive_int, probability, spatial_dim
 from .association import assign, chi2_gate, greedy_assign, mahalanobis_from_cholesky
+from .confirmation import HitCountConfirmer, SequentialScoreConfirmer, pair_log_likelihood
 from .kalman import BatchKalmanFilter, constant_velocity_model
 
 __all__ = [
     "GNNAssociator",
     "GreedyAssociator",
+    "HitCountConfirmer",
     "KalmanPredictor",
     "KalmanUpdater",
     "MissCountDeleter",
     "MultiObjectTracker",
+    "SequentialScoreConfirmer",
     "SingleDetectionInitiator",
     "Track",
+    "pair_log_likelihood",
 ]
 
 STATUSES = ("tentative", "confirmed", "coasting")
@@ -102,8 +113,9 @@ class Track:
     P : numpy.ndarray, shape (2*dim, 2*dim)
         Posterior covariance (read-only).
     status : str
-        ``"tentative"`` (not yet ``min_hits`` detections), ``"confirmed"`` (confirmed and
-        detected this frame) or ``"coasting"`` (confirmed, missed this frame: predicted only).
+        ``"tentative"`` (not yet confirmed: ``min_hits`` detections, or the confirmer's rule),
+        ``"confirmed"`` (confirmed and detected this frame) or ``"coasting"`` (confirmed, missed this
+        frame: predicted only).
     hits : int
         Number of detections assigned to the track, the birth detection included.
     misses : int
@@ -301,6 +313,7 @@ class MissCountDeleter:
         return ((misses > 0) & ~confirmed) | (misses > self.max_misses)
 
 
+
 # ----------------------------------------------------------------------------------------------------
 # tracker
 # ----------------------------------------------------------------------------------------------------
@@ -366,11 +379,13 @@ class MultiObjectTracker:
     a :class:`flowtrack.motion.MotionBatchFilter` and its own association and update (the
     ``predictor``, ``associator`` and ``updater`` parts are then not used; ``initiator`` and
     ``deleter`` are).
-    predictor, associator, updater, initiator, deleter : optional
+    predictor, associator, updater, initiator, deleter, confirmer : optional
         Replacement parts (see the module docstring); defaults :class:`KalmanPredictor`,
         :class:`GNNAssociator` ``(gate_prob)``, :class:`KalmanUpdater`,
-        :class:`SingleDetectionInitiator`, :class:`MissCountDeleter` ``(max_misses)``. A custom
-        associator brings its own gate (``gate_prob`` is then unused), a custom deleter its own rule.
+        :class:`SingleDetectionInitiator`, :class:`MissCountDeleter` ``(max_misses)``,
+        :class:`HitCountConfirmer` ``(min_hits)``. A custom associator brings its own gate
+        (``gate_prob`` is then unused), a custom deleter or confirmer its own rule (``min_hits`` is
+        then unused); :class:`SequentialScoreConfirmer` confirms by the track score.
 
     Attributes
     ----------
@@ -416,6 +431,7 @@ class MultiObjectTracker:
         updater=None,
         initiator=None,
         deleter=None,
+        confirmer=None,
         max_history=None,
         velocity_update=False,
         velocity_cov=None,
@@ -446,6 +462,7 @@ class MultiObjectTracker:
             else SingleDetectionInitiator(R, velocity_var=velocity_var, flow_velocity_var=flow_velocity_var)
         )
         self.deleter = deleter if deleter is not None else MissCountDeleter(self.max_misses)
+        self.confirmer = confirmer if confirmer is not None else HitCountConfirmer(self.min_hits)
         n = 2 * self.dim
         self.kf = BatchKalmanFilter(F, H, Q, R, np.zeros((0, n)), np.eye(n))
         self._ids = np.zeros(0, dtype=np.int64)
@@ -453,6 +470,7 @@ class MultiObjectTracker:
         self._misses = np.zeros(0, dtype=np.int64)
         self._age = np.zeros(0, dtype=np.int64)
         self._confirmed = np.zeros(0, dtype=bool)
+        self._scores = np.zeros(0)
         self._next_id = 0
         self.frame = -1
         # one record per frame: (frame, ids (M,), x (M,n), P (M,n,n), status codes (M,))
@@ -529,23 +547,37 @@ class MultiObjectTracker:
             matches = np.asarray(matches, dtype=np.intp).reshape(-1, 2)
             unmatched_tracks = np.asarray(unmatched_tracks, dtype=np.intp)
             unmatched_dets = np.asarray(unmatched_dets, dtype=np.intp)
+            Zj, has_v = Z, np.zeros(Z.shape[0], dtype=bool)
+            if self.confirmer.needs_likelihood:
+                z_pred, S = np.array(z_pred), np.array(S)  # the prior, kept through the update
             self.updater.update(kf, Z, matches)
         else:
-            matches, unmatched_tracks, unmatched_dets = self._flow.predict_associate_update(Z, V, Rv)
-        # 4. bookkeeping: hits, misses, confirmation
+            (matches, unmatched_tracks, unmatched_dets), (z_pred, S, Zj, has_v) = \
+                self._flow.predict_associate_update(Z, V, Rv)
+        # 4. bookkeeping: hits, misses, score, confirmation
         matched = matches[:, 0]
         self._hits[matched] += 1
         self._misses[matched] = 0
         self._misses[unmatched_tracks] += 1
         self._age += 1
-        self._confirmed |= self._hits >= self.min_hits
-        # deletions (occlusions beyond max_misses, tentative tracks that missed)
+        confirmer = self.confirmer
+        if confirmer.needs_likelihood:
+            loglik = pair_log_likelihood(z_pred, S, Zj, matches)  # the prior's predicted density
+            dets = matches[:, 1]
+            self._scores = confirmer.update_scores(
+                self._scores, matched, loglik, has_v[dets], unmatched_tracks,
+                velocities=None if V is None else V[dets], velocity_covs=None if Rv is None else Rv[dets])
+        confirm, reject = confirmer.decide(self._scores, self._hits)
+        self._confirmed |= confirm
+        # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
         dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
+        dead |= reject & ~self._confirmed
         if dead.any():
             keep = ~dead
             kf.keep(keep)
-            self._ids, self._hits, self._misses, self._age, self._confirmed = (
-                a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed)
+            self._ids, self._hits, self._misses, self._age, self._confirmed, self._scores = (
+                a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed,
+                                  self._scores)
             )
         # births from unassigned detections
         if unmatched_dets.size:
@@ -559,7 +591,10 @@ class MultiObjectTracker:
             self._hits = np.concatenate([self._hits, np.ones(k, dtype=np.int64)])
             self._misses = np.concatenate([self._misses, np.zeros(k, dtype=np.int64)])
             self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
-            self._confirmed = np.concatenate([self._confirmed, np.full(k, self.min_hits <= 1)])
+            scores0 = confirmer.initial_scores(k)
+            self._scores = np.concatenate([self._scores, scores0])
+            self._confirmed = np.concatenate(
+                [self._confirmed, confirmer.decide(scores0, np.ones(k, dtype=np.int64))[0]])
         # record and report
         xs = kf.x.copy()
         Ps = kf.P.copy()
@@ -596,6 +631,12 @@ class MultiObjectTracker:
             out.append((frame, [Track(t, xs[k], Ps[k], STATUSES[c], hits[k], misses[k], age[k])
                                 for k, (t, c) in enumerate(zip(ids.tolist(), codes.tolist()))]))
         return out
+
+    @property
+    def scores(self) -> dict[int, float]:
+        """Each live track's confirmation score after the last :meth:`step` (0 with
+        :class:`HitCountConfirmer`; the log-likelihood ratio with :class:`SequentialScoreConfirmer`)."""
+        return dict(zip(self._ids.tolist(), self._scores.tolist()))
 
     @property
     def tracks(self) -> list[Track]:
@@ -759,7 +800,7 @@ class _FlowOptions:
             _, S, m = kf.joint_innovation(Z, V, Rv)
             has_v = m == 2 * d
             Zj = np.concatenate([Z, np.where(has_v[:, None], V, np.nan)], axis=1)
-            z_pred = kf.x[:, : 2 * d]
+            z_pred = kf.x[:, : 2 * d].copy()  # the prior (the update below changes kf.x)
         else:
             has_v = np.zeros(N, dtype=bool)
             Zj = Z
@@ -788,7 +829,7 @@ class _FlowOptions:
                 kf.update_joint(Zm, Vm, Rvm, mask)
             else:
                 kf.update_joint(Zm, None, None, mask)
-        return matches, ut, ud
+        return (matches, ut, ud), (z_pred, S, Zj, has_v)
 
     def birth_states(self, x0, P0, Rv):
         """Extend the initiator's ``[p, v]`` states: velocity covariance = the measured one, yaw rate 0."""

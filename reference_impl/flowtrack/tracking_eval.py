@@ -84,7 +84,10 @@ def score_run(run: dict, truth: Sequence[dict], max_dist: float) -> dict:
     """CLEAR-MOT / IDF1 of a :func:`run_tracker` result and its mean prediction error (mm).
 
     ``truth`` has one ``{object id: position}`` per frame, at least as many frames as the run; its
-    frames beyond the run's are used only as the future of the predictions.
+    frames beyond the run's are used only as the future of the predictions. Besides ``mota``,
+    ``idf1``, ``id_switches`` and ``prediction_error_mm``: ``fp``, ``fn``, ``tracks`` (ids ever
+    reported as detected) and ``spurious_tracks`` (of those, ids never matched to any object within
+    ``max_dist``: tracks of clutter).
     """
     max_dist = positive(max_dist, "max_dist")
     T = len(run["hyp"])
@@ -92,6 +95,8 @@ def score_run(run: dict, truth: Sequence[dict], max_dist: float) -> dict:
         raise ValueError(f"truth must have at least {T} frames, got {len(truth)}")
     mot, matches, _ = clear_mot(list(truth[:T]), run["hyp"], max_dist, return_matches=True)
     ahead = run["ahead"]
+    reported = {tid for frame in run["hyp"] for tid in frame}
+    matched = {tid for frame in matches for tid in frame.values()}
     errs = []
     for t in range(T):
         if t + ahead >= len(truth):
@@ -107,6 +112,8 @@ def score_run(run: dict, truth: Sequence[dict], max_dist: float) -> dict:
         "prediction_error_mm": 1000.0 * float(np.mean(errs)) if errs else float("nan"),
         "predictions_scored": len(errs),
         "fp": int(mot["fp"]),
+        "tracks": len(reported),
+        "spurious_tracks": len(reported - matched),
         "fn": int(mot["fn"]),
         "ahead": ahead,
     }

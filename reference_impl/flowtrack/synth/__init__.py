@@ -30,6 +30,8 @@ The package, by concept:
 - :mod:`flowtrack.synth.raycast` – the camera pose, exact ray casting with a z-buffer, shading.
 - :mod:`flowtrack.synth.scenarios` – options, workspace, placement and the scripted scenarios.
 - :mod:`flowtrack.synth.scene` – :class:`Frame`, :class:`Scene` and :func:`make_scene`.
+- :mod:`flowtrack.synth.sensor` – Kinect-like depth artefacts for a rendered depth image
+  (:func:`kinect_depth`: depth-dependent noise, disparity quantisation, flying pixels, edge holes).
 
 Every name below is importable from ``flowtrack.synth`` itself.
 """
@@ -39,6 +41,7 @@ from __future__ import annotations
 from .raycast import RayCast, look_at, ray_cast, ray_directions
 from .scenarios import SCENARIOS
 from .scene import Frame, Scene, make_scene
+from .sensor import kinect_depth, kinect_sigma
 from .shapes import ArcTrajectory, Body, Box, Cylinder, PlanarTrajectory, Plane
 
 __all__ = [
@@ -53,6 +56,8 @@ __all__ = [
     "RayCast",
     "Scene",
     "look_at",
+    "kinect_depth",
+    "kinect_sigma",
     "make_scene",
     "ray_cast",
     "ray_directions",

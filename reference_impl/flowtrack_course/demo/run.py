@@ -20,6 +20,7 @@ from flowtrack.pipeline import (
     open3d_threads,
     rgbd_cloud_flow,
     scene_flow_and_clusters,
+    track_confirmer,
     visible_centroid_velocities,
 )
 from flowtrack.sceneflow import scene_flow_metrics
@@ -255,7 +256,8 @@ def run_demo(
 
     from flowtrack.tracking import MultiObjectTracker
 
-    tracker_options = dict(min_hits=cfg.min_hits, max_misses=cfg.max_misses, gate_prob=cfg.gate_prob)
+    tracker_options = dict(min_hits=cfg.min_hits, max_misses=cfg.max_misses, gate_prob=cfg.gate_prob,
+                           confirmer=track_confirmer(cfg))
     tracker = MultiObjectTracker(dt=dt, q=cfg.track_q, r=cfg.track_r, dim=3, velocity_update=True,
                                  **tracker_options)
     # a detection needs min_detection_points subsampled points (off the planes): ground truth ignores

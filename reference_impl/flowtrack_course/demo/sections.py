@@ -107,7 +107,12 @@ def report_sections(inp, summary, figures, real, tud) -> list[Section]:
         "pieces' centroids as detections and, as velocity measurements, the velocity of each piece's "
         "visible-surface centroid (its pixels carried into the next depth image by the flow) with a "
         "covariance from the cluster's flow residuals, widened where the visible extent changes. "
-        "Every track of every frame is in tracks.csv (frame, track_id, status, x, y, z, vx, vy, vz; "
+        + ("A track is confirmed when its log-likelihood ratio of 'moving object' against 'clutter' "
+           "(static surface leaking through the motion segmentation: flying pixels, depth-edge noise) "
+           "passes Wald's threshold (flowtrack.tracking.SequentialScoreConfirmer). "
+           if summary["config"].get("confirmation") == "score" else
+           f"A track is confirmed after {summary['config']['min_hits']} detections. ")
+        + "Every track of every frame is in tracks.csv (frame, track_id, status, x, y, z, vx, vy, vz; "
         "camera frame, m and m/s).",
         f"{summary['points_per_cloud']} points per cloud, {summary['detections_per_frame']:.1f} detections "
         f"per frame on average; seconds per frame pair: "
