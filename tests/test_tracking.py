@@ -697,9 +697,12 @@ class _KeepTentative:
         return np.zeros(hits.shape, dtype=bool)
 
 
-def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, Rv=None, clutter_cov=None):
+def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, Rv=None, clutter_cov=None,
+                     static_cov=None):
     """Brute-force score of one track born from frames[0]: a hand-written Kalman filter and scipy's
-    multivariate_normal density of each detection (or ln(1 - P_D) for a None frame)."""
+    multivariate_normal density of each detection (or ln(1 - P_D) for a None frame). With static_cov,
+    the position clutter density is max(lam, N(z; mean of the earlier detections,
+    (1 + 1/n)(r I + static_cov)))."""
     from scipy.stats import multivariate_normal
 
     d = len(frames[0])
@@ -723,6 +726,11 @@ def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, R
                 Rm = np.block([[r * np.eye(d), np.zeros((d, d))], [np.zeros((d, d)), Rv]])
                 lam_t = lam[0] * (lam[1] if clutter_cov is None else
                                   multivariate_normal(np.zeros(d), clutter_cov + Rv).pdf(velocities[t]))
+            if static_cov is not None:
+                seen = [f for f in frames[:t] if f is not None]
+                f_s = multivariate_normal(np.mean(seen, axis=0),
+                                          (1 + 1 / len(seen)) * (r * np.eye(d) + static_cov)).pdf(frames[t])
+                lam_t = lam_t / lam[0] * max(lam[0], f_s)
             S = H @ P @ H.T + Rm
             L += np.log(pd) + multivariate_normal(H @ x, S).logpdf(z) - np.log(lam_t)
             K = P @ H.T @ np.linalg.inv(S)
@@ -732,8 +740,10 @@ def _kf_score_oracle(frames, dt, q, r, velocity_var, pd, lam, velocities=None, R
     return np.array(scores)
 
 
-@pytest.mark.parametrize("with_velocity, static_clutter", [(False, False), (True, False), (True, True)])
-def test_sequential_score_against_hand_filter(with_velocity, static_clutter):
+@pytest.mark.parametrize("with_velocity, static_clutter, static_position",
+                         [(False, False, False), (True, False, False), (True, True, False),
+                          (False, False, True), (True, True, True)])
+def test_sequential_score_against_hand_filter(with_velocity, static_clutter, static_position):
     from flowtrack.tracking import SequentialScoreConfirmer
 
     dt, q, r, vv, pd, lam, lam_v = 0.5, 0.3, 0.04, 1.0, 0.8, 0.02, 0.5
@@ -741,9 +751,11 @@ def test_sequential_score_against_hand_filter(with_velocity, static_clutter):
     vel = [np.array([1.0, 0.2]), np.array([0.9, 0.25]), None, np.array([1.1, 0.1]), np.array([0.8, 0.3])]
     Rv = np.array([[0.05, 0.01], [0.01, 0.08]])
     Sc = np.array([[0.02, 0.005], [0.005, 0.03]]) if static_clutter else None
+    # a static artefact's jitter wide enough that max(lam, f_s) takes f_s in some frames, lam in others
+    Ss = np.array([[0.3, 0.05], [0.05, 0.2]]) if static_position else None
     conf = SequentialScoreConfirmer(p_detect=pd, clutter_density=lam, velocity_clutter_density=lam_v,
                                     false_confirm=1e-12, missed_confirm=1e-12,  # never decides
-                                    clutter_velocity_cov=Sc)
+                                    clutter_velocity_cov=Sc, static_position_cov=Ss)
     opts = dict(velocity_update=True, velocity_cov=Rv) if with_velocity else {}
     trk = MultiObjectTracker(dt, q, r, dim=2, velocity_var=vv, confirmer=conf, deleter=_KeepTentative(),
                              **opts)
@@ -756,8 +768,12 @@ def test_sequential_score_against_hand_filter(with_velocity, static_clutter):
         else:
             trk.step(z[None])
         got.append(trk.scores[0])
-    want = _kf_score_oracle(frames, dt, q, r, vv, pd, (lam, lam_v), vel if with_velocity else None, Rv, Sc)
+    want = _kf_score_oracle(frames, dt, q, r, vv, pd, (lam, lam_v), vel if with_velocity else None, Rv, Sc,
+                            Ss)
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+    if static_position:  # the test exercises both branches of the max
+        assert not np.allclose(want, _kf_score_oracle(frames, dt, q, r, vv, pd, (lam, lam_v),
+                                                      vel if with_velocity else None, Rv, Sc))
     assert [t.status for t in trk.tracks] == ["tentative"]
 
 
@@ -789,6 +805,46 @@ def test_sequential_score_thresholds_decide():
     for k in range(1, n_misses + 1):
         trk.step(np.empty((0, 2)))
         assert (len(trk.tracks) == 1) == (k < n_misses)
+
+
+def test_static_position_hypothesis_artefact_never_confirms_object_still_does(rng):
+    """With static_position_cov, a static artefact (detections jittering about one place, flow noise
+    for a velocity) is never confirmed and its tentative tracks
+    end (rejected), while without it it confirms; an object
+    moving at 0.3 m/s confirms within one frame of when it does without the option."""
+    from flowtrack.tracking import SequentialScoreConfirmer
+
+    dt, q, r, pd, lam = 0.1, 1.0, 1e-4, 0.9, 1.0
+    Sc, Ss, Rv = 0.02**2, 0.005**2, (0.02**2) * np.eye(3)
+
+    def run(static, z, v):
+        conf = SequentialScoreConfirmer(pd, lam, false_confirm=1e-4, missed_confirm=0.1,
+                                        clutter_velocity_cov=Sc, static_position_cov=Ss if static else None)
+        trk = MultiObjectTracker(dt, q, r, dim=3, velocity_update=True, confirmer=conf,
+                                 deleter=_KeepTentative())
+        first, alive = None, []
+        for t in range(len(z)):
+            out = trk.step(z[t][None], v[t][None], Rv[None])
+            if out and first is None:
+                first = t
+            alive.append(max((tr.age for tr in trk.tracks), default=0))
+        return first, alive
+
+    T = 40
+    for _trial in range(5):
+        p = rng.uniform(-0.5, 0.5, 3)
+        z_art = p + rng.normal(0, np.sqrt(r + Ss), (T, 3))
+        v_art = rng.normal(0, np.sqrt(Sc + 0.02**2), (T, 3))
+        first_plain, _ = run(False, z_art, v_art)
+        assert first_plain is not None  # the artefact confirms on its position term without the option
+        first, alive = run(True, z_art, v_art)
+        assert first is None and max(alive) < T // 2  # never confirmed; its tracks are rejected
+        vel = np.array([0.3, -0.1, 0.0])
+        z_obj = p + np.arange(T)[:, None] * dt * vel + rng.normal(0, np.sqrt(r), (T, 3))
+        v_obj = vel + rng.normal(0, 0.02, (T, 3))
+        f0, _ = run(False, z_obj, v_obj)
+        f1, _ = run(True, z_obj, v_obj)
+        assert f0 is not None and f1 is not None and f1 <= f0 + 1
 
 
 def test_sequential_score_error_rates_on_clutter_and_targets():
@@ -849,3 +905,10 @@ def test_sequential_score_bad_input():
         SequentialScoreConfirmer(0.9, 0.0)
     with pytest.raises(ValueError, match="min_hits"):
         HitCountConfirmer(0)
+    with pytest.raises(ValueError, match="static_position_cov"):
+        SequentialScoreConfirmer(0.9, 1.0, static_position_cov=np.ones((2, 3)))
+    with pytest.raises(ValueError, match="static_position_cov"):
+        SequentialScoreConfirmer(0.9, 1.0, static_position_cov=-1.0)
+    with pytest.raises(ValueError, match="anchors"):  # the option needs the positions
+        SequentialScoreConfirmer(0.9, 1.0, static_position_cov=0.01).update_scores(
+            np.zeros(1), np.array([0]), np.array([0.0]), np.array([False]), np.array([], dtype=int))

@@ -25,6 +25,7 @@ class HitCountConfirmer:
     """
 
     needs_likelihood = False
+    needs_positions = False
 
     def __init__(self, min_hits: int = 2):
         self.min_hits = positive_int(min_hits, "min_hits")
@@ -76,6 +77,32 @@ class SequentialScoreConfirmer:
     :math:`\tfrac12 v^\top(\Sigma_c + R_v)^{-1}v` per frame. A static artefact detected at the same
     place frame after frame then has to reach :math:`T_c` on its position term alone.
 
+    **Static artefacts' positions.** The velocity term does not stop an artefact detected at the
+    same place frame after frame: its small position innovations beat a uniform :math:`\lambda_c`.
+    With ``static_position_cov`` :math:`\Sigma_s` given, :math:`H_0` also contains "a static artefact
+    at an unknown fixed place :math:`p`", its detections :math:`z_k \sim \mathcal N(p, R + \Sigma_s)`
+    (:math:`R` the tracker's position noise, :math:`\Sigma_s` the artefact's own jitter). With a flat
+    prior on :math:`p` (the birth detection's density is :math:`\lambda_c` under both :math:`H_0`'s, so
+    :math:`L_0` is unchanged), the predictive density of the :math:`k`-th detection given the
+    :math:`n = k - 1` earlier ones is
+
+    .. math::  f_s(z_k) = \mathcal N\!\left(z_k;\ \bar z_n,\ (1 + \tfrac1n)(R + \Sigma_s)\right),
+               \qquad \bar z_n = \tfrac1n \textstyle\sum_{i<k} z_i
+
+    (the anchor :math:`\bar z_n` is the mean of the track's earlier detections). The position part
+    of the clutter density becomes the larger of the two alternatives,
+
+    .. math::  \lambda_c(z) = \max\left(\lambda_c,\ f_s(z)\right),
+
+    a generalised likelihood ratio over :math:`H_0`'s two members taken frame by frame. Since
+    :math:`\sum_k \ln(f_1 / \max(f_a, f_b)) \le \min(\sum_k \ln f_1/f_a, \sum_k \ln f_1/f_b)`, the score
+    is never above either sequence's log-ratio, so a sequence that would not confirm against the
+    uniform clutter or against the static artefact alone does not confirm here (Wald's
+    :math:`\alpha` bound holds against each member). A static artefact's own prediction is no sharper
+    than :math:`f_s` (its Kalman filter adds velocity uncertainty to the same anchor), so its score
+    gains at most :math:`\ln P_D < 0` per detection and never confirms; an object moving away from
+    its anchor makes :math:`f_s` vanish and gains the usual terms.
+
     Wald's test with a false-confirmation probability :math:`\alpha`
     (``false_confirm``: a clutter sequence is confirmed) and a missed-confirmation probability
     :math:`\beta` (``missed_confirm``: an object's sequence is rejected) confirms when
@@ -106,6 +133,11 @@ class SequentialScoreConfirmer:
         :math:`\alpha` and :math:`\beta`, each in (0, 1) with :math:`\alpha + \beta < 1`.
     birth_log_ratio : float
         :math:`L_0`, default 0.
+    static_position_cov : float or array_like, shape (dim, dim), optional
+        :math:`\Sigma_s`: a static artefact's position jitter beyond the measurement noise (m^2; a
+        number means :math:`\sigma^2 I`). With it, the clutter density of a detection's position is
+        :math:`\max(\lambda_c, f_s(z))` (above); ``update_scores`` then needs ``positions``,
+        ``anchors``, ``anchor_counts`` and ``position_cov``.
 
     Attributes
     ----------
@@ -130,7 +162,7 @@ class SequentialScoreConfirmer:
 
     def __init__(self, p_detect: float, clutter_density: float, velocity_clutter_density: float = 1.0,
                  false_confirm: float = 1e-3, missed_confirm: float = 0.1, birth_log_ratio: float = 0.0,
-                 clutter_velocity_cov=None):
+                 clutter_velocity_cov=None, static_position_cov=None):
         self.p_detect = probability(p_detect, "p_detect")
         self.clutter_density = positive(clutter_density, "clutter_density")
         self.velocity_clutter_density = positive(velocity_clutter_density, "velocity_clutter_density")
@@ -139,18 +171,10 @@ class SequentialScoreConfirmer:
         if self.false_confirm + self.missed_confirm >= 1.0:
             raise ValueError("false_confirm + missed_confirm must be < 1, got "
                              f"{self.false_confirm} + {self.missed_confirm}")
-        if clutter_velocity_cov is not None:
-            from ._validation import check_psd
-
-            cov = as_array(clutter_velocity_cov, "clutter_velocity_cov")
-            if cov.ndim == 0:
-                cov = nonnegative(float(cov), "clutter_velocity_cov")
-            else:
-                if cov.ndim != 2 or cov.shape[0] != cov.shape[1]:
-                    raise ValueError(f"clutter_velocity_cov must be a number or (dim, dim), got {cov.shape}")
-                check_psd(cov, "clutter_velocity_cov")
-            clutter_velocity_cov = cov
-        self.clutter_velocity_cov = clutter_velocity_cov
+        self.clutter_velocity_cov = _cov_option(clutter_velocity_cov, "clutter_velocity_cov")
+        self.static_position_cov = _cov_option(static_position_cov, "static_position_cov")
+        #: the tracker passes detections' positions and the tracks' anchors to update_scores
+        self.needs_positions = self.static_position_cov is not None
         self.birth_log_ratio = float(birth_log_ratio)
         if not np.isfinite(self.birth_log_ratio):
             raise ValueError("birth_log_ratio must be finite")
@@ -162,13 +186,17 @@ class SequentialScoreConfirmer:
         return np.full(k, self.birth_log_ratio)
 
     def update_scores(self, scores, matched, log_likelihood, has_velocity, missed, velocities=None,
-                      velocity_covs=None) -> np.ndarray:
+                      velocity_covs=None, positions=None, anchors=None, anchor_counts=None,
+                      position_cov=None) -> np.ndarray:
         r"""Add :math:`\Delta L` to the rows ``matched`` (with :math:`\ln\mathcal N` = ``log_likelihood``,
         shape (K,)) and ``missed``; return the new scores (M,).
 
         ``velocities`` (K, d) and ``velocity_covs`` (K, d, d), the matched detections' velocity
         measurements and covariances, are needed (for the rows with ``has_velocity``) only with
-        ``clutter_velocity_cov``."""
+        ``clutter_velocity_cov``. ``positions`` (K, d) (the matched detections' positions),
+        ``anchors`` (M, d) and ``anchor_counts`` (M,) (the mean and number of each track's earlier
+        detections) and ``position_cov`` (d, d) (the measurement noise :math:`R`) are needed only
+        with ``static_position_cov``."""
         out = np.array(scores, dtype=float, copy=True)
         log_lam = np.full(len(matched), np.log(self.clutter_density))
         has_velocity = np.asarray(has_velocity, dtype=bool)
@@ -186,6 +214,24 @@ class SequentialScoreConfirmer:
             w = np.linalg.solve(L, v[..., None])[..., 0]
             log_lam[has_velocity] += -0.5 * ((w**2).sum(axis=1) + d * np.log(2.0 * np.pi)) - np.log(
                 np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+        if self.static_position_cov is not None and len(matched):
+            if positions is None or anchors is None or anchor_counts is None or position_cov is None:
+                raise ValueError("static_position_cov needs positions, anchors, anchor_counts and "
+                                 "position_cov")
+            z = np.asarray(positions, dtype=float)
+            d = z.shape[1]
+            n = np.asarray(anchor_counts, dtype=float)[matched]
+            if np.any(n < 1):
+                raise ValueError("anchor_counts must be >= 1 for matched tracks (the birth detection counts)")
+            Rs = np.asarray(position_cov, dtype=float) + (
+                self.static_position_cov * np.eye(d) if np.ndim(self.static_position_cov) == 0
+                else self.static_position_cov)
+            cov = (1.0 + 1.0 / n)[:, None, None] * Rs
+            L = np.linalg.cholesky(cov)
+            w = np.linalg.solve(L, (z - np.asarray(anchors, dtype=float)[matched])[..., None])[..., 0]
+            log_fs = -0.5 * ((w**2).sum(axis=1) + d * np.log(2.0 * np.pi)) - np.log(
+                np.diagonal(L, axis1=1, axis2=2)).sum(axis=1)
+            log_lam += np.maximum(log_fs - np.log(self.clutter_density), 0.0)
         out[matched] += np.log(self.p_detect) + log_likelihood - log_lam
         out[missed] += np.log1p(-self.p_detect)
         return out
@@ -193,6 +239,21 @@ class SequentialScoreConfirmer:
     def decide(self, scores: np.ndarray, hits: np.ndarray):
         """``(confirm, reject)`` masks (M,): :math:`L \\ge T_c`, :math:`L \\le T_d`."""
         return scores >= self.confirm_threshold, scores <= self.reject_threshold
+
+
+def _cov_option(cov, name):
+    """None, a nonnegative number, or a (d, d) PSD matrix."""
+    if cov is None:
+        return None
+    from ._validation import check_psd
+
+    cov = as_array(cov, name)
+    if cov.ndim == 0:
+        return nonnegative(float(cov), name)
+    if cov.ndim != 2 or cov.shape[0] != cov.shape[1]:
+        raise ValueError(f"{name} must be a number or (dim, dim), got {cov.shape}")
+    check_psd(cov, name)
+    return cov
 
 
 def pair_log_likelihood(z_pred, S, Z, matches) -> np.ndarray:

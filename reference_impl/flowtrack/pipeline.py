@@ -166,6 +166,10 @@ class PipelineConfig:
     #: Wald's alpha: probability that a clutter sequence is confirmed (per tentative track)
     track_false_confirm: float = 1e-4
     track_missed_confirm: float = 0.1  #: Wald's beta: probability that an object's sequence is rejected
+    #: standard deviation (m) of a static artefact's position jitter beyond ``track_r``: with a number, the
+    #: score's clutter hypothesis also holds "a static artefact at a fixed place"
+    #: (:class:`flowtrack.tracking.SequentialScoreConfirmer`'s ``static_position_cov``); None: uniform only
+    track_static_position_std: float | None = None
 
 
 def track_confirmer(cfg: PipelineConfig):
@@ -197,7 +201,9 @@ def track_confirmer(cfg: PipelineConfig):
     return SequentialScoreConfirmer(cfg.track_p_detect, cfg.track_clutter_density,
                                     false_confirm=cfg.track_false_confirm,
                                     missed_confirm=cfg.track_missed_confirm,
-                                    clutter_velocity_cov=(cfg.rgbd_min_speed / 2.0) ** 2)
+                                    clutter_velocity_cov=(cfg.rgbd_min_speed / 2.0) ** 2,
+                                    static_position_cov=None if cfg.track_static_position_std is None
+                                    else cfg.track_static_position_std ** 2)
 
 
 def subsample(n: int, max_points: int, rng: np.random.Generator) -> np.ndarray:

@@ -51,7 +51,9 @@ confirmer          ``initial_scores(k) -> (k,)``; ``update_scores(scores (M,), m
                    log_likelihood (K,), has_velocity (K,), missed, velocities=None (K, d),
                    velocity_covs=None (K, d, d)) -> (M,)``;
                    ``decide(scores (M,), hits (M,)) -> (confirm (M,), reject (M,))``;
-                   ``needs_likelihood`` (bool)
+                   ``needs_likelihood`` (bool); with ``needs_positions`` (bool, optional) also
+                   ``positions`` (K, d), ``anchors`` (M, d) (mean of each track's detections so far),
+                   ``anchor_counts`` (M,) and ``position_cov`` (d, d) (the tracker's R)
 =================  =========================================================================
 
 Examples
@@ -471,6 +473,10 @@ class MultiObjectTracker:
         self._age = np.zeros(0, dtype=np.int64)
         self._confirmed = np.zeros(0, dtype=bool)
         self._scores = np.zeros(0)
+        # sum and number of each track's detected positions (the static-artefact anchor of the score)
+        self._anchor_sum = np.zeros((0, self.dim))
+        self._anchor_n = np.zeros(0, dtype=np.int64)
+        self._R = np.asarray(R, dtype=float)
         self._next_id = 0
         self.frame = -1
         # one record per frame: (frame, ids (M,), x (M,n), P (M,n,n), status codes (M,))
@@ -564,9 +570,17 @@ class MultiObjectTracker:
         if confirmer.needs_likelihood:
             loglik = pair_log_likelihood(z_pred, S, Zj, matches)  # the prior's predicted density
             dets = matches[:, 1]
+            pos = {}
+            if getattr(confirmer, "needs_positions", False):
+                anchors = self._anchor_sum / np.maximum(self._anchor_n, 1)[:, None]
+                pos = dict(positions=Z[dets], anchors=anchors, anchor_counts=self._anchor_n,
+                           position_cov=self._R)
             self._scores = confirmer.update_scores(
                 self._scores, matched, loglik, has_v[dets], unmatched_tracks,
-                velocities=None if V is None else V[dets], velocity_covs=None if Rv is None else Rv[dets])
+                velocities=None if V is None else V[dets], velocity_covs=None if Rv is None else Rv[dets],
+                **pos)
+        self._anchor_sum[matched] += Z[matches[:, 1]]
+        self._anchor_n[matched] += 1
         confirm, reject = confirmer.decide(self._scores, self._hits)
         self._confirmed |= confirm
         # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
@@ -575,9 +589,10 @@ class MultiObjectTracker:
         if dead.any():
             keep = ~dead
             kf.keep(keep)
-            self._ids, self._hits, self._misses, self._age, self._confirmed, self._scores = (
+            (self._ids, self._hits, self._misses, self._age, self._confirmed, self._scores,
+             self._anchor_sum, self._anchor_n) = (
                 a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed,
-                                  self._scores)
+                                  self._scores, self._anchor_sum, self._anchor_n)
             )
         # births from unassigned detections
         if unmatched_dets.size:
@@ -593,6 +608,8 @@ class MultiObjectTracker:
             self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
             scores0 = confirmer.initial_scores(k)
             self._scores = np.concatenate([self._scores, scores0])
+            self._anchor_sum = np.concatenate([self._anchor_sum, Z[unmatched_dets]])
+            self._anchor_n = np.concatenate([self._anchor_n, np.ones(k, dtype=np.int64)])
             self._confirmed = np.concatenate(
                 [self._confirmed, confirmer.decide(scores0, np.ones(k, dtype=np.int64))[0]])
         # record and report
