@@ -167,8 +167,9 @@ class PipelineConfig:
     track_false_confirm: float = 1e-4
     track_missed_confirm: float = 0.1  #: Wald's beta: probability that an object's sequence is rejected
     #: standard deviation (m) of a static artefact's position jitter beyond ``track_r``: with a number, the
-    #: score's clutter hypothesis also holds "a static artefact at a fixed place"
-    #: (:class:`flowtrack.tracking.SequentialScoreConfirmer`'s ``static_position_cov``); None: uniform only
+    #: score's clutter hypothesis also holds "a static artefact at a fixed place" (depth-edge artefacts
+    #: detected at the same place frame after frame; :class:`flowtrack.tracking.SequentialScoreConfirmer`'s
+    #: ``static_position_cov``); None: uniform clutter only
     track_static_position_std: float | None = None
 
 
@@ -181,14 +182,18 @@ def track_confirmer(cfg: PipelineConfig):
     covariance :math:`\Sigma_c = (s/2)^2 I` with :math:`s` = ``rgbd_min_speed``: the motion
     clustering keeps points faster than :math:`s`, about two standard deviations of the flow noise
     on static surfaces, so the clutter it lets through (depth-edge artefacts, flying pixels) moves
-    at :math:`\mathcal N(0, (s/2)^2 I)` plus its own measurement noise. ``"hits"``:
+    at :math:`\mathcal N(0, (s/2)^2 I)` plus its own measurement noise; with
+    ``track_static_position_std`` :math:`\sigma_s`, a static artefact at a fixed place is part of the
+    clutter hypothesis too (``static_position_cov`` :math:`= \sigma_s^2 I`). ``"hits"``:
     :class:`flowtrack.tracking.HitCountConfirmer` ``(min_hits)``.
 
     Examples
     --------
     >>> c = track_confirmer(PipelineConfig())
-    >>> type(c).__name__, round(c.confirm_threshold, 2), c.clutter_velocity_cov
-    ('SequentialScoreConfirmer', 9.1, 0.0004)
+    >>> type(c).__name__, round(c.confirm_threshold, 2), c.clutter_velocity_cov, c.static_position_cov
+    ('SequentialScoreConfirmer', 9.1, 0.0004, None)
+    >>> track_confirmer(PipelineConfig(track_static_position_std=0.01)).static_position_cov
+    0.0001
     >>> type(track_confirmer(PipelineConfig(confirmation="hits"))).__name__
     'HitCountConfirmer'
     """
