@@ -101,7 +101,9 @@ def test_mahalanobis_reference_matches_solve_and_the_gate():
         d2 = np.array([r @ np.linalg.solve(S, r) for r in Z - zp])
         out = p.reference(inp)
         np.testing.assert_allclose(out["d2"], d2, rtol=1e-10)
-        np.testing.assert_array_equal(out["inside"], (d2 <= inp["gate"]).astype(float))
+        # the gate decision, where d2 is not within rounding of the gate (another BLAS may round there)
+        clear = np.abs(d2 - inp["gate"]) > 1e-9 * inp["gate"]
+        np.testing.assert_array_equal(out["inside"][clear], (d2 <= inp["gate"]).astype(float)[clear])
         assert 0.0 < out["inside"].mean() < 1.0  # a never- or always-gating answer cannot score
     assert p.reference(p.public()[0])["inside"].tolist() == [1.0, 1.0, 0.0]  # 1, 4, 9.25 vs 9.21
 
