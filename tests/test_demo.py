@@ -611,10 +611,11 @@ def test_report_shows_the_ablation_table(demo_out, summary):
     assert "| tracker | MOTA | IDF1 | ID switches |" in md
 
 
-@pytest.mark.parametrize("layout", ["tum", "stereo"])
+@pytest.mark.parametrize("layout", ["tum", "stereo", "tum-step"])
 def test_input_sequence_writes_tracks_csv_from_the_trackers_history(layout, tmp_path, monkeypatch):
     """--input (TUM layout, or stereo with disparities): tracks.csv read back equals the demo tracker's
-    history row by row, the ablation is skipped with a note, and the tracks sit on the objects."""
+    history row by row, every frame read is tracked (the last one too) under its input frame index
+    (``--step 2``: 0, 2, 4, ...), the ablation is skipped with a note, and the tracks sit on the objects."""
     import flowtrack.tracking as tracking_mod
     from flowtrack.rgbd_io import write_pfm
     from flowtrack_course.demo.inputs import surface_centroids
@@ -628,12 +629,13 @@ def test_input_sequence_writes_tracks_csv_from_the_trackers_history(layout, tmp_
             made.append(self)
 
     monkeypatch.setattr(tracking_mod, "MultiObjectTracker", Spy)
-    n = 7
-    scene = make_scene(n_objects=2, n_frames=n, image_size=(96, 128), seed=3)
+    step = 2 if layout == "tum-step" else 1
+    n = 7 * step
+    scene = make_scene(n_objects=2, n_frames=n, image_size=(96, 128), seed=3, dt=0.1 / step)
     cam = scene.camera
-    if layout == "tum":
+    if layout.startswith("tum"):
         seq = _write_tum(tmp_path / "seq", scene)
-        extra = []
+        extra = ["--step", str(step)]
     else:
         seq, B = tmp_path / "stereo", 0.1
         for sub in ("left", "disparity"):
@@ -650,10 +652,10 @@ def test_input_sequence_writes_tracks_csv_from_the_trackers_history(layout, tmp_
     trk = made[0]
     header, rows = _read_tracks(out / "tracks.csv")
     assert header == TRACKS_HEADER
-    want = [(f, tr.id, tr.status, tr.position, tr.velocity) for f, tracks in trk.history()
+    want = [(f * step, tr.id, tr.status, tr.position, tr.velocity) for f, tracks in trk.history()
             for tr in sorted(tracks, key=lambda t: t.id)]
     assert len(rows) == len(want) > 0
-    assert {f for f, *_ in want} == set(range(n - 1))
+    assert {f for f, *_ in want} == set(range(0, n, step))
     for r, (f, tid, status, p, v) in zip(rows, want):
         assert (r["frame"], r["track_id"], r["status"]) == (f, tid, status)
         np.testing.assert_allclose(r["p"], p, rtol=1e-15, atol=0)  # repr() round-trips a float
@@ -665,4 +667,4 @@ def test_input_sequence_writes_tracks_csv_from_the_trackers_history(layout, tmp_
     # the confirmed tracks are on the two moving objects (true surface centroids, this frame)
     d = [min(np.linalg.norm(c - r["p"]) for c in surface_centroids(scene.frames[r["frame"]], 30).values())
          for r in rows if r["status"] == "confirmed"]
-    assert len(d) >= n - 3 and np.median(d) < 0.03, d
+    assert len(d) >= n // step - 3 and np.median(d) < 0.03, d

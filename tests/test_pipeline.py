@@ -327,3 +327,166 @@ def test_visible_centroid_velocities_bad_input(kwargs, match):
             "depth_t": np.ones((5, 5)), "depth_t1": np.ones((5, 5)), "camera": cam, "dt": 0.1} | kwargs
     with pytest.raises(ValueError, match=match):
         visible_centroid_velocities(**args)
+
+
+# ------------------------------------------------------------------------------------------------
+# frame pairing at any frame rate, and the coherence and colour tests of detection_pieces
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("n, dt", [(2, 0.1), (5, 0.1), (9, 1 / 30), (4, 1 / 30), (30, 1 / 60), (7, 0.5)])
+def test_flow_partners_against_the_rule_written_out(n, dt):
+    from flowtrack.pipeline import flow_partners
+
+    part = flow_partners(n, dt, interval=0.1)
+    k = max(1, round(0.1 / dt))
+    assert len(part) == n
+    for t, s in enumerate(part):
+        assert s != t and 0 <= s < n
+        if t + k <= n - 1 or t - k >= 0:  # a pair spans exactly k frames, forward while it can
+            assert abs(s - t) == k
+            assert (s > t) == (t + k <= n - 1)
+        else:  # the sequence is too short for k: the farthest frame
+            assert abs(s - t) == max(t, n - 1 - t)
+
+
+@pytest.mark.parametrize("kwargs, match", [({"n": 1}, "n"), ({"dt": 0.0}, "dt"), ({"interval": -1.0}, "interval")])
+def test_flow_partners_bad_input(kwargs, match):
+    from flowtrack.pipeline import flow_partners
+
+    with pytest.raises(ValueError, match=match):
+        flow_partners(**({"n": 4, "dt": 0.1} | kwargs))
+
+
+def _textured_wall(shift_px: float, seed: int = 0):
+    """A fronto-parallel wall at Z = 1 m filling a 60x80 image, its texture shifted by ``shift_px``."""
+    from flowtrack.camera import PinholeCamera
+
+    cam = PinholeCamera(fx=100.0, fy=100.0, cx=39.5, cy=29.5, width=80, height=60)
+    rng = np.random.default_rng(seed)
+    coarse = rng.uniform(0, 255, (8, 12))
+    yy, xx = np.mgrid[0:60, 0:80].astype(float)
+
+    def tex(x, y):  # bilinear upsampling of the coarse noise: a smooth texture, 8 px blobs
+        gx, gy = np.clip(x / 8.0, 0, 10.999), np.clip(y / 8.0, 0, 6.999)
+        i, j = gy.astype(int), gx.astype(int)
+        a, b = gy - i, gx - j
+        return ((1 - a) * (1 - b) * coarse[i, j] + (1 - a) * b * coarse[i, j + 1]
+                + a * (1 - b) * coarse[i + 1, j] + a * b * coarse[i + 1, j + 1])
+
+    img0 = np.repeat(tex(xx + 8, yy)[..., None], 3, axis=2).astype(np.uint8)
+    img1 = np.repeat(tex(xx + 8 - shift_px, yy)[..., None], 3, axis=2).astype(np.uint8)
+    X = np.column_stack([(xx.ravel() - cam.cx) / cam.fx, (yy.ravel() - cam.cy) / cam.fy, np.ones(xx.size)])
+    return cam, img0, img1, X
+
+
+def test_detection_pieces_colour_sees_a_wall_slide_along_itself():
+    # A wall that slides 2 cm sideways in 0.1 s stays on its plane: geometry alone calls it static.
+    # Its texture moves 2 px, which the colour test sees; a wall that stands still with the same
+    # (wrong) flow is static by colour too.
+    cam, img0, img1_moving, X = _textured_wall(shift_px=2.0)
+    _, _, img1_static, _ = _textured_wall(shift_px=0.0)
+    dt, v = 0.1, np.array([0.2, 0.0, 0.0])
+    flow = np.tile(v, (len(X), 1))
+    labels = np.zeros(len(X), dtype=int)
+    cfg = PipelineConfig(max_planes=0, min_detection_points=10)
+    from flowtrack.pipeline import detection_pieces
+
+    geometry_only = detection_pieces(X, labels, flow, cfg, next_points=X, dt=dt)
+    assert geometry_only == []  # the same plane at t+1: static is as good a fit as moving
+    kept = detection_pieces(X, labels, flow, cfg, next_points=X, dt=dt, images=(img0, img1_moving, cam))
+    assert len(kept) == 1 and len(kept[0]) == len(X)
+    assert detection_pieces(X, labels, flow, cfg, next_points=X, dt=dt, images=(img0, img1_static, cam)) == []
+
+
+def test_detection_pieces_min_speed_drops_incoherent_flow():
+    # two blobs of 200 points: one moving together at 0.1 m/s, one whose points move 0.1 m/s each
+    # in random directions (the flow noise of a depth-edge artefact): only the first is an object
+    from flowtrack.pipeline import detection_pieces
+
+    rng = np.random.default_rng(3)
+    a = rng.normal([0.0, 0.0, 1.0], 0.01, (200, 3))
+    b = rng.normal([0.5, 0.0, 1.0], 0.01, (200, 3))
+    d = rng.normal(size=(200, 3))
+    noise_flow = 0.1 * d / np.linalg.norm(d, axis=1, keepdims=True)
+    P = np.vstack([a, b])
+    flow = np.vstack([np.tile([0.1, 0.0, 0.0], (200, 1)), noise_flow])
+    labels = np.r_[np.zeros(200, int), np.ones(200, int)]
+    cfg = PipelineConfig(max_planes=0)
+    assert len(detection_pieces(P, labels, flow, cfg)) == 2
+    assert np.linalg.norm(noise_flow.mean(axis=0)) < 0.02  # what the test relies on: the mean is small
+    kept = detection_pieces(P, labels, flow, cfg, min_speed=0.04)
+    assert [sorted(p) for p in kept] == [list(range(200))]
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"min_speed": -0.1}, "min_speed"),
+        ({"images": (np.zeros((4, 4)), np.zeros((4, 4)), None)}, "next_points"),
+        ({"images": (np.zeros((4, 4)), np.zeros((4, 4))), "next_points": np.zeros((3, 3)), "dt": 0.1}, "images"),
+        ({"images": (np.zeros((4, 4)), np.zeros((5, 4)), None), "next_points": np.zeros((3, 3)), "dt": 0.1},
+         "same size"),
+        ({"images": (np.zeros((4, 4, 2)), np.zeros((4, 4)), None), "next_points": np.zeros((3, 3)), "dt": 0.1},
+         r"images\[0\]"),
+    ],
+)
+def test_detection_pieces_bad_options(kwargs, match):
+    from flowtrack.pipeline import detection_pieces
+
+    args = {"points": np.zeros((5, 3)), "clusters": np.zeros(5, dtype=int), "flow": np.zeros((5, 3))} | kwargs
+    with pytest.raises(ValueError, match=match):
+        detection_pieces(config=PipelineConfig(max_planes=0), **args)
+
+
+def _plate_behind_a_bar(bar_depth: float):
+    """A plate at Z = 1.5 m (columns 10-69, rows 20-39 of an 80x60 image) in front of a wall at 2 m,
+    with a vertical bar over columns 35-44 at ``bar_depth`` (farther than the plate: a gap between two
+    plates that shows what is behind): the plate's visible pixels, back-projected by hand, and the
+    depth image."""
+    from flowtrack.camera import PinholeCamera
+
+    cam = PinholeCamera(fx=100.0, fy=100.0, cx=39.5, cy=29.5, width=80, height=60)
+    depth = np.full((60, 80), 2.0)
+    depth[20:40, 10:70] = 1.5
+    if bar_depth < 1.5:
+        depth[:, 35:45] = bar_depth
+    else:
+        depth[20:40, 35:45] = bar_depth
+    rows, cols = np.nonzero(depth == 1.5)
+    X = np.column_stack([(cols - cam.cx) / cam.fx * 1.5, (rows - cam.cy) / cam.fy * 1.5, np.full(len(rows), 1.5)])
+    return cam, depth, X, cols
+
+
+@pytest.mark.parametrize("bar_depth, v_right, merged", [
+    (1.0, 0.1, True),    # the bar hides the plate's middle: one object in two pieces
+    (2.0, 0.1, False),   # nothing in front of the gap (the wall behind): two objects
+    (1.0, 0.2, False),   # hidden middle, but the pieces move differently: two objects
+    (1.49, 0.1, False),  # the bar is nearer by less than occlusion_margin (2 cm)
+])
+def test_detection_pieces_merge_pieces_split_by_a_nearer_occluder(bar_depth, v_right, merged):
+    from flowtrack.pipeline import detection_pieces
+
+    cam, depth, X, cols = _plate_behind_a_bar(bar_depth)
+    right = cols >= 45
+    flow = np.zeros((len(X), 3))
+    flow[:, 0] = np.where(right, v_right, 0.1)
+    labels = right.astype(int)  # two motion clusters, as the clustering finds them
+    cfg = PipelineConfig(max_planes=0)
+    plain = detection_pieces(X, labels, flow, cfg)
+    assert sorted(len(p) for p in plain) == [500, 500]  # each visible end alone
+    got = detection_pieces(X, labels, flow, cfg, occluders=(depth, cam))
+    if merged:
+        assert len(got) == 1 and np.array_equal(got[0], np.arange(len(X)))
+    else:
+        assert sorted(map(tuple, got)) == sorted(map(tuple, plain))
+
+
+def test_detection_pieces_occluders_bad_input():
+    from flowtrack.pipeline import detection_pieces
+
+    cam, depth, X, cols = _plate_behind_a_bar(1.0)
+    labels = (cols >= 45).astype(int)
+    flow = np.tile([0.1, 0.0, 0.0], (len(X), 1))
+    with pytest.raises(ValueError, match="occluders"):
+        detection_pieces(X, labels, flow, PipelineConfig(max_planes=0), occluders=(depth,))
+    with pytest.raises(ValueError, match=r"occluders\[0\]"):
+        detection_pieces(X, labels, flow, PipelineConfig(max_planes=0), occluders=(depth[0], cam))

@@ -912,3 +912,57 @@ def test_sequential_score_bad_input():
     with pytest.raises(ValueError, match="anchors"):  # the option needs the positions
         SequentialScoreConfirmer(0.9, 1.0, static_position_cov=0.01).update_scores(
             np.zeros(1), np.array([0]), np.array([0.0]), np.array([False]), np.array([], dtype=int))
+
+
+# ------------------------------------------------------------------------------------------------
+# re-acquisition after an occlusion
+# ------------------------------------------------------------------------------------------------
+def _hidden_and_back(offset, reacquire_radius, velocity_update=False):
+    """An object at 0.1 m/s seen for 6 frames, hidden for 3, back ``offset`` (m, in y) from where it
+    would be; a second object far away throughout. Returns the tracker and the reported ids per frame."""
+    from flowtrack.tracking import MultiObjectTracker
+
+    trk = MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, dim=2, min_hits=2, max_misses=5,
+                             reacquire_radius=reacquire_radius, velocity_update=velocity_update)
+    far = np.array([2.0, 2.0])
+    ids = []
+    for k in range(14):
+        obj = np.array([0.01 * k, 0.0])
+        if 6 <= k < 9:
+            Z = far[None]
+        else:
+            Z = np.vstack([obj + ([0.0, offset] if k >= 9 else 0.0), far])
+        ids.append(sorted((t.id, t.status) for t in trk.step(Z)))
+    return trk, ids
+
+
+def test_reacquire_hands_a_track_born_near_a_coasting_one_back_to_its_id():
+    # back 8 cm off its predicted path (its gate is about 1 cm wide): a new track is born
+    _, plain = _hidden_and_back(0.08, None)
+    assert plain[10] == [(0, "coasting"), (1, "confirmed"), (2, "confirmed")]  # a new id for the object
+    assert plain[-1] == [(1, "confirmed"), (2, "confirmed")]  # and id 0 dies after max_misses
+    trk, ids = _hidden_and_back(0.08, 0.15)
+    assert ids[8] == [(0, "coasting"), (1, "confirmed")]
+    assert ids[9] == [(0, "coasting"), (1, "confirmed")]  # the newborn is tentative (min_hits = 2)
+    assert ids[10:] == [[(0, "confirmed"), (1, "confirmed")]] * 4  # confirmed: handed to id 0
+    # track 0 now follows the object where it is, with the newborn's state (not the old prediction)
+    last = {t.id: t for t in trk.tracks}
+    np.testing.assert_allclose(last[0].position, [0.13, 0.08], atol=0.01)
+    assert 2 not in last
+
+
+def test_reacquire_leaves_far_tracks_and_the_default_alone():
+    _, far = _hidden_and_back(0.30, 0.15)  # farther than the radius: another object
+    assert far[10] == [(0, "coasting"), (1, "confirmed"), (2, "confirmed")]
+    _, default = _hidden_and_back(0.08, None)
+    _, huge_off = _hidden_and_back(0.08, 0.01)
+    assert default == huge_off  # a radius smaller than the offset changes nothing
+
+
+def test_reacquire_with_velocity_updates_and_bad_radius():
+    from flowtrack.tracking import MultiObjectTracker
+
+    _, ids = _hidden_and_back(0.08, 0.15, velocity_update=True)
+    assert ids[-1] == [(0, "confirmed"), (1, "confirmed")]
+    with pytest.raises(ValueError, match="reacquire_radius"):
+        MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, reacquire_radius=0.0)

@@ -13,7 +13,10 @@ What the demo app (``flowtrack demo``) and lesson 6 share. Per frame pair :math:
 3. :func:`detections_from_clusters` removes the support planes (:func:`support_planes`, open3d
    RANSAC) and turns each remaining connected piece of a cluster into a detection: its centroid
    :math:`\bar X` and mean rigid velocity :math:`\bar v` (the mean of a rigid motion's flow over a
-   piece is the flow of its centroid, exactly);
+   piece is the flow of its centroid, exactly). :func:`detection_pieces`, which finds the pieces,
+   can also skip pieces whose points do not move together (``min_speed``: depth-edge artefacts),
+   pieces that geometry *and* colour call static (``images``), and merge the pieces of an object
+   split by a nearer occluder (``occluders``);
 4. :func:`visible_centroid_velocities` gives each detection the velocity of what it measures, the
    centroid of the object's *visible* surface, and a velocity covariance inflated where the visible
    extent changes (below);
@@ -58,6 +61,12 @@ the covariance along it. Without a change the gap is the pixel-sampling noise (a
 :math:`u \approx \bar v`; with one, the filter learns the centroid's motion yet gates and coasts
 with the object's (an object hidden while it slowed would otherwise reappear outside its gate).
 
+**Any frame rate.** The thresholds (speeds in m/s, coasting in frames) were set at 10 Hz. A faster
+sensor moves an object less per frame while the flow's noise per frame pair stays the same, so
+:func:`flow_partners` pairs every frame with the one ``flow_interval`` (0.1 s) later — a 30 Hz
+sequence pairs frame t with t + 3, and its last three frames with t − 3 (velocity negated) — and the
+demo coasts ``max_misses`` flow intervals.
+
 Examples
 --------
 >>> import numpy as np
@@ -94,6 +103,7 @@ __all__ = [
     "cloud_from_depth",
     "detection_pieces",
     "detections_from_clusters",
+    "flow_partners",
     "open3d_threads",
     "rgbd_cloud_flow",
     "scene_flow_and_clusters",
@@ -174,6 +184,25 @@ class PipelineConfig:
     #: 8 -> 0) but confirms objects that re-appear after an occlusion later (occlusion seed 0: 0.725 ->
     #: 0.652), and position-only tracks (no velocity evidence) hardly confirm at all
     track_static_position_std: float | None = None
+    #: shortest time (s) over which scene flow is measured. The thresholds above were set on 10 Hz
+    #: input, where an object moves a few mm per frame pair; a 30 Hz sensor (the TUM sequences) moves it a
+    #: third as far while the flow's noise per pair stays about 1 mm, so static surfaces cross
+    #: ``rgbd_min_speed`` and objects break up. Input faster than ``1 / flow_interval`` pairs every frame
+    #: with the frame ``k = round(flow_interval / dt)`` on (:func:`flow_partners`) and coasts tracks for
+    #: ``max_misses * k`` frames, so the same thresholds hold in m/s and seconds at any frame rate
+    flow_interval: float = 0.1
+    #: re-acquisition radius (m) of the tracker (:class:`flowtrack.tracking.MultiObjectTracker`'s
+    #: ``reacquire_radius``): a track confirmed within this distance of a coasting one is that object
+    #: back from an occlusion. An object being hidden shows a shrinking visible surface whose centroid
+    #: slides, so its track may coast off its path and miss the object's return; 0.15 m is about a
+    #: tabletop object's size. None: off
+    track_reacquire_radius: float | None = 0.15
+    #: pieces split by a nearer occluder are one object (:func:`detection_pieces`' ``occluders``) when their
+    #: mean velocities differ by at most this (m/s; a box turning at 0.5 rad/s whose two visible ends are
+    #: 10 cm apart differs by 0.05 m/s), ...
+    occlusion_merge_velocity: float = 0.05
+    occlusion_max_gap: float = 0.25  #: ... their closest points are at most this far apart (m), ...
+    occlusion_margin: float = 0.02  #: ... and the surface between them is nearer by more than this (m)
 
 
 def track_confirmer(cfg: PipelineConfig):
@@ -212,6 +241,54 @@ def track_confirmer(cfg: PipelineConfig):
                                     clutter_velocity_cov=(cfg.rgbd_min_speed / 2.0) ** 2,
                                     static_position_cov=None if cfg.track_static_position_std is None
                                     else cfg.track_static_position_std ** 2)
+
+
+def flow_partners(n: int, dt: float, interval: float = 0.1) -> list[int]:
+    r"""The frame each of ``n`` frames is paired with for scene flow, at least ``interval`` apart in time.
+
+    With :math:`k = \max(1, \operatorname{round}(\text{interval} / \Delta t))`, frame t is paired with
+    t + k while that exists, and the last k frames with t − k (the flow of that pair, negated, is the
+    velocity at t: every frame gets detections, the last one included). In a sequence shorter than
+    2k frames a frame with neither is paired with its farthest frame. The velocity of a pair is the mean over its
+    interval, :math:`(X_{t+k} - X_t) / (k\,\Delta t)`: its noise falls like 1/k and a constant
+    velocity is unchanged.
+
+    Parameters
+    ----------
+    n : int, >= 2
+        Frames.
+    dt : float, > 0
+        Frame interval (s).
+    interval : float, > 0
+        Shortest flow interval (s), :attr:`PipelineConfig.flow_interval`.
+
+    Returns
+    -------
+    list of int
+        Partner of each frame; ``partner[t] - t`` is the signed pair length in frames.
+
+    Examples
+    --------
+    >>> flow_partners(5, dt=0.1)                  # 10 Hz: the next frame, the last one backwards
+    [1, 2, 3, 4, 3]
+    >>> flow_partners(8, dt=1 / 30)               # 30 Hz: three frames on
+    [3, 4, 5, 6, 7, 2, 3, 4]
+    >>> flow_partners(3, dt=1 / 30)               # too short for k = 3
+    [2, 2, 0]
+    """
+    n = positive_int(n, "n", minimum=2)
+    dt = positive(dt, "dt")
+    interval = positive(interval, "interval")
+    k = max(1, int(round(interval / dt)))
+    out = []
+    for t in range(n):
+        if t + k <= n - 1:
+            out.append(t + k)
+        elif t - k >= 0:
+            out.append(t - k)
+        else:
+            out.append(n - 1 if n - 1 - t >= t else 0)
+    return out
 
 
 def subsample(n: int, max_points: int, rng: np.random.Generator) -> np.ndarray:
@@ -438,10 +515,34 @@ def support_planes(points, config: PipelineConfig | None = None) -> np.ndarray:
 
 
 def detection_pieces(points, clusters, flow, config: PipelineConfig | None = None, next_points=None,
-                     dt: float | None = None) -> list[np.ndarray]:
+                     dt: float | None = None, *, min_speed: float | None = None,
+                     images=None, occluders=None) -> list[np.ndarray]:
     r"""The point sets of :func:`detections_from_clusters`' detections, in the same order.
 
-    Parameters are those of :func:`detections_from_clusters`.
+    Parameters are those of :func:`detections_from_clusters`, and:
+
+    min_speed : float, optional
+        A piece whose *mean* flow is slower than this (m/s) is skipped. The motion clustering keeps
+        points faster than its threshold one by one; the flow noise of a depth-edge artefact (flying
+        pixels, dropouts flickering at a step in depth) is fast point by point but points every way,
+        so its mean is near zero, while an object's points move together, :math:`|\bar v| \approx
+        \overline{|v|}`. Pass the clustering's own threshold (the demo: ``rgbd_min_speed``).
+    images : tuple (rgb_t, rgb_next, camera), optional
+        With ``next_points``: the colour images of the two frames (uint8 (H, W, 3) or grey (H, W))
+        and the camera. A piece is then skipped as static only when colour agrees with geometry: the
+        median grey-level difference between each point's pixel at t and its static position
+        :math:`\pi(X_i)` in the next image is no larger than at its moved position
+        :math:`\pi(X_i + v_i\,\Delta t)`. Geometry alone cannot see a textured surface slide along
+        itself (a box pushed along its long face stays on that face's plane, and a turning box
+        sweeps its faces over themselves); its texture can.
+    occluders : tuple (depth_t, camera), optional
+        The depth image of frame t (metres, 0 = none) and the camera: pieces split by something in
+        front of them are merged into one detection. An object partly hidden by a nearer one shows
+        two pieces with one motion; pieces a and b are merged when their mean velocities differ by
+        at most ``occlusion_merge_velocity``, their closest points are at most ``occlusion_max_gap``
+        apart, and between the image projections of those points the depth image, once the
+        pieces' own surface at either end is passed, is nearer than both points by more than
+        ``occlusion_margin`` along at least half of the segment (merges are transitive).
 
     Returns
     -------
@@ -463,6 +564,18 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
             raise ValueError("dt must be given with next_points")
         dt = positive(dt, "dt")
         tree = cKDTree(as_array(next_points, "next_points", ("M", 3)))
+    if min_speed is not None:
+        min_speed = nonnegative(min_speed, "min_speed")
+    grey = None
+    if images is not None:
+        if tree is None:
+            raise ValueError("images need next_points and dt")
+        if len(images) != 3:
+            raise ValueError("images must be (rgb_t, rgb_next, camera)")
+        grey = (_grey(images[0], "images[0]"), _grey(images[1], "images[1]"), images[2])
+        if grey[0].shape != grey[1].shape:
+            raise ValueError(f"images[0] and images[1] must have the same size, got {grey[0].shape} and "
+                             f"{grey[1].shape}")
     keep = (clusters >= 0) & ~support_planes(P, cfg)
     pieces = []
     for c in np.unique(clusters[keep]):
@@ -475,13 +588,110 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
         for j in np.unique(comp):
             piece = idx[comp == j]
             if len(piece) >= cfg.min_detection_points:
+                if min_speed is not None and np.linalg.norm(flow[piece].mean(axis=0)) < min_speed:
+                    continue
                 if tree is not None:
                     d_static = np.median(tree.query(P[piece])[0])
                     d_moving = np.median(tree.query(P[piece] + dt * flow[piece])[0])
-                    if d_static <= d_moving:
+                    if d_static <= d_moving and (grey is None or _colour_static(grey, P[piece], flow[piece], dt)):
                         continue
                 pieces.append(piece)
+    if occluders is not None and len(pieces) > 1:
+        if len(occluders) != 2:
+            raise ValueError("occluders must be (depth_t, camera)")
+        depth = np.asarray(occluders[0], dtype=np.float64)
+        if depth.ndim != 2:
+            raise ValueError(f"occluders[0] must be a depth image of shape (H, W), got {depth.shape}")
+        pieces = _merge_occluded(P, pieces, flow, depth, occluders[1], cfg)
     return pieces
+
+
+def _occluded_between(xa, xb, depth, cam, margin: float) -> bool:
+    """Whether the image segment between the projections of ``xa`` and ``xb`` is covered by a surface
+    nearer than both (after the pieces' own surface at either end)."""
+    H, W = depth.shape
+    ua = np.array([cam.fx * xa[0] / xa[2] + cam.cx, cam.fy * xa[1] / xa[2] + cam.cy])
+    ub = np.array([cam.fx * xb[0] / xb[2] + cam.cx, cam.fy * xb[1] / xb[2] + cam.cy])
+    n = int(np.ceil(np.hypot(*(ub - ua))))
+    if n < 3:
+        return False
+    uv = ua + np.linspace(0.0, 1.0, n + 1)[1:-1, None] * (ub - ua)
+    c = np.clip(np.round(uv[:, 0]).astype(int), 0, W - 1)
+    r = np.clip(np.round(uv[:, 1]).astype(int), 0, H - 1)
+    z = depth[r, c]
+    nearer = (z > 0) & (z < min(xa[2], xb[2]) - margin)
+    hits = np.flatnonzero(nearer)
+    if len(hits) == 0:
+        return False
+    inner = nearer[hits[0]: hits[-1] + 1]  # the pieces' own surface at the ends is passed
+    valid = (z[hits[0]: hits[-1] + 1] > 0)
+    return bool(len(inner) >= 0.5 * len(z) and inner[valid].mean() >= 0.8)
+
+
+def _merge_occluded(P, pieces, flow, depth, cam, cfg) -> list[np.ndarray]:
+    from scipy.spatial import cKDTree
+
+    n = len(pieces)
+    parent = list(range(n))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    vel = [flow[p].mean(axis=0) for p in pieces]
+    trees = [cKDTree(P[p]) for p in pieces]
+    for a in range(n):
+        for b in range(a + 1, n):
+            if find(a) == find(b) or np.linalg.norm(vel[a] - vel[b]) > cfg.occlusion_merge_velocity:
+                continue
+            d, j = trees[a].query(P[pieces[b]])
+            ib = int(np.argmin(d))
+            if d[ib] > cfg.occlusion_max_gap:
+                continue
+            if _occluded_between(P[pieces[a]][j[ib]], P[pieces[b]][ib], depth, cam, cfg.occlusion_margin):
+                parent[find(b)] = find(a)
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(find(i), []).append(i)
+    return [np.sort(np.concatenate([pieces[i] for i in g])) for g in sorted(groups.values(), key=min)]
+
+
+def _grey(img, name: str) -> np.ndarray:
+    a = np.asarray(img)
+    if a.ndim == 3 and a.shape[2] in (3, 4):
+        a = a[..., :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114])
+    elif a.ndim != 2:
+        raise ValueError(f"{name} must be an image of shape (H, W, 3) or (H, W), got {a.shape}")
+    a = a.astype(np.float64)
+    return a / 255.0 if np.asarray(img).dtype == np.uint8 else a
+
+
+def _colour_static(grey, X, v, dt) -> bool:
+    """Whether the pixels of ``X`` at t match the next image at least as well at their static
+    positions as at their moved ones (median absolute grey difference, nearest pixel)."""
+    g0, g1, cam = grey
+    H, W = g0.shape
+
+    def pix(Y):
+        z = Y[:, 2]
+        ok = z > 1e-6
+        u = np.full(len(Y), -1)
+        r = np.full(len(Y), -1)
+        u[ok] = np.round(cam.fx * Y[ok, 0] / z[ok] + cam.cx).astype(int)
+        r[ok] = np.round(cam.fy * Y[ok, 1] / z[ok] + cam.cy).astype(int)
+        return u, r, ok & (u >= 0) & (u < W) & (r >= 0) & (r < H)
+
+    u0, r0, ok0 = pix(X)
+    u1, r1, ok1 = pix(X + dt * v)
+    ok = ok0 & ok1
+    if not ok.any():
+        return True
+    ref = g0[r0[ok], u0[ok]]
+    e_static = np.median(np.abs(g1[r0[ok], u0[ok]] - ref))
+    e_moving = np.median(np.abs(g1[r1[ok], u1[ok]] - ref))
+    return bool(e_static <= e_moving)
 
 
 def detections_from_clusters(points, clusters, flow, config: PipelineConfig | None = None, next_points=None,

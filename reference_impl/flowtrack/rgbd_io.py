@@ -92,6 +92,9 @@ class RGBDSequence:
         Where the frames came from.
     files : list of tuple of str
         The file names of each frame, for messages.
+    indices : list of int
+        Index of each frame in the input (TUM: among the associated colour/depth pairs; stereo: among
+        the left images) before ``step`` and ``max_frames`` chose some; empty means 0, 1, 2, ...
     """
 
     camera: PinholeCamera
@@ -100,6 +103,7 @@ class RGBDSequence:
     timestamps: np.ndarray
     source: str = ""
     files: list = field(default_factory=list)
+    indices: list = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.depth)
@@ -538,7 +542,8 @@ def load_tum_sequence(
         depth.append(d)
     H, W = depth[0].shape
     cam = _resolve_intrinsics(intrinsics, root, W, H)
-    return RGBDSequence(cam, rgb, depth, stamps, source=str(root), files=[(str(a), str(b)) for a, b in files])
+    return RGBDSequence(cam, rgb, depth, stamps, source=str(root), files=[(str(a), str(b)) for a, b in files],
+                        indices=list(sel))
 
 
 def load_stereo_sequence(
@@ -625,8 +630,8 @@ def load_stereo_sequence(
         rgb.append(c)
         depth.append(depth_from_disparity(d, cam.fx, baseline, doffs))
         files.append((str(lefts[i]), str(disps[i])))
-    stamps = np.arange(len(depth), dtype=np.float64) * dt
-    return RGBDSequence(cam, rgb, depth, stamps, source=str(root), files=files)
+    stamps = np.array(list(sel), dtype=np.float64) * dt  # with step, frames are step * dt apart
+    return RGBDSequence(cam, rgb, depth, stamps, source=str(root), files=files, indices=list(sel))
 
 
 def load_rgbd(root, stereo: bool = False, **kwargs) -> RGBDSequence:

@@ -23,7 +23,11 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
      tentative track is deleted at its first miss;
    - a confirmed track without a detection is *coasting* (occluded): it is only predicted. It is
      deleted when its consecutive misses exceed ``max_misses``, i.e. at the ``max_misses + 1``-th
-     consecutive miss; an occlusion of up to ``max_misses`` frames keeps the track and its id.
+     consecutive miss; an occlusion of up to ``max_misses`` frames keeps the track and its id;
+   - with ``reacquire_radius`` r, a track confirmed while a confirmed track is coasting within r of
+     it is that object coming back (out of its gate: its velocity was learnt while it was being
+     hidden, from a shrinking visible surface): the coasting track takes the new track's state and
+     keeps its id, and the new track ends (nearest pairs first, each track once).
 
 Track ids come from a counter and are never reused.
 
@@ -376,6 +380,10 @@ class MultiObjectTracker:
         Normal of the plane of motion (3-D turn-rate model; default z). In the camera frame pass the
         table's (support plane's) normal: the camera's z is its optical axis, and a wrong plane turns
         the velocity the wrong way.
+    reacquire_radius : float, optional
+        Re-acquisition after an occlusion (m; see the module docstring): a newly confirmed track
+        within this distance of a coasting confirmed track hands its state to that track, which
+        keeps its id. Default None: off.
 
     With any of ``velocity_update``, ``p_detect`` or ``motion_model="turn_rate"`` the tracker runs on
     a :class:`flowtrack.motion.MotionBatchFilter` and its own association and update (the
@@ -444,8 +452,11 @@ class MultiObjectTracker:
         q_omega=1.0,
         omega_var=4.0,
         turn_axis=None,
+        reacquire_radius=None,
     ):
         self.dt = positive(dt, "dt")
+        self.reacquire_radius = None if reacquire_radius is None else positive(reacquire_radius,
+                                                                               "reacquire_radius")
         self.q = nonnegative(q, "q")
         self.dim = spatial_dim(dim, "dim")
         F, H, Q, R = constant_velocity_model(self.dt, self.q, r, self.dim)
@@ -513,6 +524,38 @@ class MultiObjectTracker:
         return Z, V
 
     # -- the loop ------------------------------------------------------------------------------------
+    def _reacquire(self, newly: np.ndarray) -> np.ndarray:
+        """Hand each newly confirmed track within ``reacquire_radius`` of a coasting confirmed track to
+        that track (nearest pairs first); return the mask of the tracks handed over."""
+        absorbed = np.zeros(len(newly), dtype=bool)
+        coast = np.flatnonzero(self._confirmed & (self._misses > 0) & ~newly)
+        new = np.flatnonzero(newly & (self._misses == 0))
+        if coast.size == 0 or new.size == 0:
+            return absorbed
+        x, P = np.array(self.kf.x), np.array(self.kf.P)
+        d = self.dim
+        D = np.linalg.norm(x[new, None, :d] - x[None, coast, :d], axis=2)
+        order = np.argsort(D, axis=None, kind="stable")
+        used_new, used_coast = set(), set()
+        for flat in order:
+            a, b = divmod(int(flat), coast.size)
+            if D[a, b] > self.reacquire_radius:
+                break
+            if a in used_new or b in used_coast:
+                continue
+            used_new.add(a)
+            used_coast.add(b)
+            i, j = coast[b], new[a]
+            x[i], P[i] = x[j], P[j]
+            self._misses[i] = 0
+            self._hits[i] += self._hits[j]
+            self._scores[i] = max(self._scores[i], self._scores[j])
+            self._anchor_sum[i], self._anchor_n[i] = self._anchor_sum[j], self._anchor_n[j]
+            absorbed[j] = True
+        if absorbed.any():
+            self.kf.x, self.kf.P = x, P
+        return absorbed
+
     def step(self, detections, velocities=None, velocity_covs=None) -> list[Track]:
         """Process one frame of detections; return the reported (confirmed or coasting) tracks.
 
@@ -582,10 +625,14 @@ class MultiObjectTracker:
         self._anchor_sum[matched] += Z[matches[:, 1]]
         self._anchor_n[matched] += 1
         confirm, reject = confirmer.decide(self._scores, self._hits)
+        newly = np.asarray(confirm, dtype=bool) & ~self._confirmed
         self._confirmed |= confirm
+        absorbed = self._reacquire(newly) if self.reacquire_radius is not None and newly.any() else None
         # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
         dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
         dead |= reject & ~self._confirmed
+        if absorbed is not None:
+            dead |= absorbed
         if dead.any():
             keep = ~dead
             kf.keep(keep)

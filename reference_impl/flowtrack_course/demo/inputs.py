@@ -27,6 +27,8 @@ class DemoInput:
     depth: list
     n: int  # frames the pipeline sees
     scene: object = None  # the synthetic Scene (ground truth), None for real input
+    #: input frame index of each frame (real input read with ``step``: 0, step, 2 step, ...); None: 0, 1, ...
+    frame_index: list | None = None
 
 
 def frame_cloud(inp: DemoInput, t: int, cfg: PipelineConfig, rng: np.random.Generator):
@@ -78,4 +80,4 @@ def load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict_
     if len(seq) < 2:
         raise ValueError(f"input {input_dir} has {len(seq)} usable frame(s); scene flow needs at least 2")
     return DemoInput(f"{'stereo' if stereo else 'RGB-D'} sequence {input_dir}", seq.camera, seq.dt, seq.rgb,
-                     seq.depth, len(seq), None)
+                     seq.depth, len(seq), None, list(seq.indices) or None)

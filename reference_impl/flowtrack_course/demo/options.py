@@ -41,8 +41,8 @@ def add_demo_arguments(demo: argparse.ArgumentParser) -> None:
     """Add every option of ``flowtrack demo`` to ``demo`` (the CLI's sub-parser, or :func:`demo_parser`)."""
     demo.add_argument("--out", default="out", help="output folder (default: out)")
     demo.add_argument("--objects", type=positive_int, default=3, help="moving objects (default: 3)")
-    demo.add_argument("--frames", type=positive_int, default=24,
-                      help="frames to process (default: 24; with --input: at most this many)")
+    demo.add_argument("--frames", type=positive_int, default=None,
+                      help="frames to process (default: 24; with --input: every frame of the sequence)")
     demo.add_argument("--height", type=positive_int, default=240, help="image height in pixels")
     demo.add_argument("--width", type=positive_int, default=320, help="image width in pixels")
     demo.add_argument("--seed", type=int, default=0, help="random seed of the synthetic scene")

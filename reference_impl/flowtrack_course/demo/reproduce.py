@@ -98,7 +98,7 @@ def reproduce_command(out, *, n_objects, n_frames, image_size, seed, noise, conf
     >>> reproduce_command("my out", **(kw | {"n_frames": 12, "seed": 3, "gif": False}))
     "flowtrack demo --out 'my out' --frames 12 --seed 3 --no-gif"
     >>> opts = {"intrinsics": "tum-fr1", "step": 2, "dt": None}
-    >>> reproduce_command("out", **(kw | {"input_dir": "seq", "input_options": opts}))
+    >>> reproduce_command("out", **(kw | {"input_dir": "seq", "input_options": opts, "n_frames": None}))
     'flowtrack demo --out out --input seq --intrinsics tum-fr1 --step 2'
     >>> cmd = reproduce_command("out", **(kw | {"noise": 0.004, "config": DemoConfig(lam=2.0)}))
     >>> shlex.split(cmd)[:2]
@@ -109,6 +109,8 @@ def reproduce_command(out, *, n_objects, n_frames, image_size, seed, noise, conf
     """
     default = {**_command_line_defaults(), "noise": DEFAULT_NOISE}
     synthetic = input_dir is None
+    if synthetic and default["n_frames"] is None:  # --frames' default: 24 frames of the synthetic scene
+        default["n_frames"] = 24
     opts = dict(input_options or {}) if not synthetic else {}
     stereo = bool(opts.pop("stereo", False))
     config = config if config is not None else DemoConfig()

@@ -17,6 +17,7 @@ from flowtrack.pipeline import (
     METHODS,
     RGBD_METHOD,
     detection_pieces,
+    flow_partners,
     open3d_threads,
     rgbd_cloud_flow,
     scene_flow_and_clusters,
@@ -135,7 +136,7 @@ def assign_tracks(tracks: dict[int, np.ndarray], truth: dict[int, np.ndarray], g
     return {ti[i]: oi[j] for i, j in zip(r, c) if C[i, j] <= gate}
 
 
-def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig):
+def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig, partner: int | None = None):
     """Detections of frame ``t`` with their velocity measurements: ``(Z (K, 3), U (K, 3), C (K, 3, 3))``.
 
     ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
@@ -145,26 +146,43 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     (:func:`flowtrack.pipeline.visible_centroid_velocities`, ``radius = centroid_radius``, at least the
     voxel size of a real cloud; ``inflation = extent_change_inflation``). The benchmark
     (``benchmarks/bench_tracking.py``) builds its detections with this function too.
+
+    ``flow`` and ``next_points`` belong to the pair (``t``, ``partner``) (default ``t + 1``; see
+    :func:`flowtrack.pipeline.flow_partners`): ``flow`` is the velocity toward frame ``partner``
+    over ``|partner - t| * inp.dt``. For a backward pair (``partner < t``) the returned ``U`` is
+    negated, so it is always the velocity at frame ``t`` forward in time.
     """
-    dt = inp.dt
-    pieces = detection_pieces(X, clusters, flow, cfg, next_points=next_points, dt=dt)
-    Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
-    C = detection_velocity_covariances(X, clusters, flow, Z, dt, min_std=cfg.velocity_min_std)
-    radius = cfg.centroid_radius if inp.scene is not None else max(cfg.centroid_radius, cfg.voxel)
-    depth_t, depth_t1 = inp.depth[t], inp.depth[t + 1]
+    s = t + 1 if partner is None else int(partner)
+    if s == t:
+        raise ValueError(f"partner must differ from t={t}")
+    dt = abs(s - t) * inp.dt
+    depth_t, depth_t1 = inp.depth[t], inp.depth[s]
     if inp.scene is None:  # the real cloud drops points beyond max_depth: so do its pixels
         depth_t = np.where(depth_t <= cfg.max_depth, depth_t, 0.0)
         depth_t1 = np.where(depth_t1 <= cfg.max_depth, depth_t1, 0.0)
+    pieces = detection_pieces(X, clusters, flow, cfg, next_points=next_points, dt=dt,
+                              min_speed=cfg.rgbd_min_speed, images=(inp.rgb[t], inp.rgb[s], inp.camera),
+                              occluders=(depth_t, inp.camera))
+    Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
+    # each piece's covariance is that of its (main) cluster: a point of it stands for the piece (a piece
+    # merged across an occluder has its centroid in the gap, maybe nearest to the occluder's points)
+    rep = []
+    for p in pieces:
+        labs, counts = np.unique(clusters[p], return_counts=True)
+        rep.append(X[p[np.flatnonzero(clusters[p] == labs[np.argmax(counts)])[0]]])
+    rep = np.array(rep).reshape(-1, 3)
+    C = detection_velocity_covariances(X, clusters, flow, rep, dt, min_std=cfg.velocity_min_std)
+    radius = cfg.centroid_radius if inp.scene is not None else max(cfg.centroid_radius, cfg.voxel)
     U, C = visible_centroid_velocities(X, pieces, flow, depth_t, depth_t1, inp.camera, dt, radius=radius,
                                        velocity_covs=C, inflation=cfg.extent_change_inflation)
-    return Z, U, C
+    return Z, (U if s > t else -U), C
 
 
 @open3d_threads(1)
 def run_demo(
     out: Path | str = "out",
     n_objects: int = 3,
-    n_frames: int = 24,
+    n_frames: int | None = 24,
     image_size: tuple[int, int] = (240, 320),
     seed: int = 0,
     noise: float = DEFAULT_NOISE,
@@ -190,8 +208,11 @@ def run_demo(
     (``velocity_update=True``, constant-velocity model).
 
     ``tracks.csv`` (:func:`flowtrack.tracking_io.write_tracks_csv`) holds every live track of every
-    processed frame t = 0 … n−2 (tentative and coasting included; the last frame has no flow pair),
-    camera frame of frame t, metres and m/s. With ground truth, ``metrics.json["tracking_ablation"]``
+    processed frame (tentative and coasting included), camera frame of that frame, metres and m/s,
+    ``frame`` its index in the input. The synthetic scene processes frames 0 … n−2, each paired with
+    the next one; real input processes every frame it reads, each paired with the frame
+    ``flow_interval`` later (the last ones with the frame that long before,
+    :func:`flowtrack.pipeline.flow_partners`), and with ``step`` frame k read is input frame k·step. With ground truth, ``metrics.json["tracking_ablation"]``
     compares position-only and flow-aided tracking on the same detections
     (:func:`flowtrack.tracking_eval.tracking_ablation`); real input has None there.
 
@@ -201,8 +222,9 @@ def run_demo(
         Output folder (created).
     n_objects, image_size, seed, noise, scenario
         The synthetic scene (:func:`flowtrack.synth.make_scene`); ignored with ``input_dir``.
-    n_frames : int, >= 2
-        Frames the pipeline processes (at most this many with ``input_dir``).
+    n_frames : int, >= 2, optional
+        Frames the pipeline processes (at most this many with ``input_dir``; None: 24 synthetic frames,
+        or every frame of ``input_dir``).
     config : DemoConfig, optional
     predict_ahead : int, >= 1
         Horizon N (frames) of the final prediction of every track.
@@ -241,7 +263,10 @@ def run_demo(
     limit needs it), so ``total_seconds`` leaves its import out.
     """
     cfg = config or DemoConfig()
-    n_frames = positive_int(n_frames, "n_frames", minimum=2)  # scene flow needs a frame pair
+    if n_frames is None and input_dir is None:
+        n_frames = 24
+    if n_frames is not None:
+        n_frames = positive_int(n_frames, "n_frames", minimum=2)  # scene flow needs a frame pair
     predict_ahead = positive_int(predict_ahead, "predict_ahead")
     seed = positive_int(seed, "seed", minimum=0)
     out = Path(out)
@@ -256,7 +281,10 @@ def run_demo(
 
     from flowtrack.tracking import MultiObjectTracker
 
-    tracker_options = dict(min_hits=cfg.min_hits, max_misses=cfg.max_misses, gate_prob=cfg.gate_prob,
+    # max_misses counts flow intervals: input faster than 1 / flow_interval coasts as long in seconds
+    frames_per_interval = max(1, int(round(cfg.flow_interval / dt)))
+    tracker_options = dict(min_hits=cfg.min_hits, max_misses=cfg.max_misses * frames_per_interval,
+                           gate_prob=cfg.gate_prob, reacquire_radius=cfg.track_reacquire_radius,
                            confirmer=track_confirmer(cfg))
     tracker = MultiObjectTracker(dt=dt, q=cfg.track_q, r=cfg.track_r, dim=3, velocity_update=True,
                                  **tracker_options)
@@ -267,17 +295,36 @@ def run_demo(
     pairs: list[FlowPair] = []
     snapshots, hyp, gt_frames, n_detections = [], [], [], []
     Zs, Vs, Cs = [], [], []  # per-frame detections, their velocities and velocity covariances
-    nxt = frame_cloud(inp, 0, cfg, rng)
-    for t in tqdm(range(inp.n - 1), desc="flowtrack demo", unit="frame", disable=not progress):
-        (X, gt_flow, labels_gt), nxt = nxt, frame_cloud(inp, t + 1, cfg, rng)
+    # the synthetic scene is rendered past the processed frames: every frame pairs with the next one.
+    # Real input pairs every frame with one at least flow_interval later (the last ones backwards),
+    # so that the last frame is tracked too and the thresholds mean the same at 30 Hz as at 10 Hz.
+    if scene is not None:
+        n_track, partners, span = inp.n - 1, [t + 1 for t in range(inp.n - 1)], 1
+    else:
+        n_track, partners = inp.n, flow_partners(inp.n, dt, cfg.flow_interval)
+        span = max(abs(p - t) for t, p in enumerate(partners))
+    clouds: dict[int, tuple] = {}
+
+    def cloud(i: int):  # each frame's cloud is drawn once, in frame order (the subsample's rng)
+        for j in range(max(clouds, default=-1) + 1, i + 1):
+            clouds[j] = frame_cloud(inp, j, cfg, rng)
+        return clouds[i]
+
+    for t in tqdm(range(n_track), desc="flowtrack demo", unit="frame", disable=not progress):
+        s_ = partners[t]
+        X, gt_flow, labels_gt = cloud(t)
+        nxt = cloud(s_)
+        for j in [j for j in clouds if j < t - span]:
+            del clouds[j]
+        pair_dt = abs(s_ - t) * dt  # the flow below is the velocity toward frame s_ over pair_dt
         pair = FlowPair(t, X, gt_flow, labels_gt)
         t0 = time.perf_counter()
-        rgbd = rgbd_cloud_flow(inp.rgb[t], inp.depth[t], inp.rgb[t + 1], inp.depth[t + 1], cam, dt, X)
+        rgbd = rgbd_cloud_flow(inp.rgb[t], inp.depth[t], inp.rgb[s_], inp.depth[s_], cam, pair_dt, X)
         t_rgbd = time.perf_counter() - t0
-        pair.flows, pair.clusters, pair.seconds = scene_flow_and_clusters(X, nxt[0], dt, cfg, flow=rgbd)
+        pair.flows, pair.clusters, pair.seconds = scene_flow_and_clusters(X, nxt[0], pair_dt, cfg, flow=rgbd)
         pair.seconds[RGBD_METHOD] = t_rgbd
         t0 = time.perf_counter()
-        Z, V, C = detection_measurements(inp, t, X, pair.clusters, rgbd, nxt[0], cfg)
+        Z, V, C = detection_measurements(inp, t, X, pair.clusters, rgbd, nxt[0], cfg, partner=s_)
         pair.seconds["detection"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         reported = tracker.step(Z, V, C)
@@ -290,7 +337,8 @@ def run_demo(
         hyp.append({tr.id: tr.position.copy() for tr in reported if tr.misses == 0})
         if scene is not None:
             gt_frames.append(surface_centroids(scene.frames[t], min_pixels))
-        pairs.append(pair)
+        if s_ > t:  # a backward pair's flows point into the past: they stay out of the flow figures
+            pairs.append(pair)
     # per-track rows (position, covariance, status) and per-object true positions, in frame order
     hist: dict[int, list] = {}
     for snap in snapshots:
@@ -300,8 +348,9 @@ def run_demo(
     for gt_t in gt_frames:
         for k, p in gt_t.items():
             gt_hist.setdefault(k, []).append(p)
-    last = inp.n - 2
-    write_tracks_csv(out / "tracks.csv", tracker)  # tracker frame k = input frame k
+    last = n_track - 1
+    # tracker frame k = input frame k (or the k-th frame read with --step)
+    write_tracks_csv(out / "tracks.csv", tracker, frames=inp.frame_index[:n_track] if inp.frame_index else None)
 
     # prediction N frames ahead: the tracker's own filter, predicted without updates
     ahead = tracker.predict_ahead(predict_ahead)
