@@ -125,19 +125,19 @@ def _kinect(z, cos_incidence, rng):
 
 
 def render_sequence(root, *, seed: int = 0, n_frames: int = 90, rate_hz: float = 30.0, plain: bool = False,
-                    size: tuple[int, int] = (480, 640), duration: float = 3.0) -> dict:
+                    size: tuple[int, int] = (480, 640), duration: float = 3.0, first: int = 0) -> dict:
     """Write the three-box sequence to ``root`` (TUM layout: rgb/, depth/, rgb.txt, depth.txt, plus
     objects.csv); return ``{"intrinsics": "fx,fy,cx,cy", "truth": {frame: {box: centre}}}``.
 
     The motions span ``duration`` seconds whatever the frame count, so ``n_frames`` frames at
-    ``rate_hz`` show the part of them that fits. ``size`` (H, W) scales the TUM fr1 intrinsics.
+    ``rate_hz`` show the part of them that fits, from frame ``first`` on (its frame 0 is the motions'
+    frame ``first``). ``size`` (H, W) scales the TUM fr1 intrinsics.
     """
     root = Path(root)
     (root / "rgb").mkdir(parents=True, exist_ok=True)
     (root / "depth").mkdir(exist_ok=True)
     rng = np.random.default_rng(seed)
-    H, W = size
-    s = W / 640.0
+    s = size[1] / 640.0
     K = (TUM_FR1[0] * s, TUM_FR1[1] * s, (TUM_FR1[2] + 0.5) * s - 0.5, (TUM_FR1[3] + 0.5) * s - 0.5)
     Rcw, eye = _look_at((0.0, -0.45, 0.65), (0.0, 0.35, 0.0))
     texs = [rng.uniform(0, 1, (24, 24, 3)), rng.uniform(0, 1, (24, 24, 3))]
@@ -157,7 +157,7 @@ def render_sequence(root, *, seed: int = 0, n_frames: int = 90, rate_hz: float =
     t0 = 1311868164.0
     for i in range(n_frames):
         t = i / rate_hz
-        P = poses(t)
+        P = poses(t + first / rate_hz)
         z, rgb, lab, cosi = _render(P, Rcw, eye, texs, K, size, rng)
         depth = _kinect(z, cosi, rng)
         ts_rgb = t0 + t + rng.uniform(-0.002, 0.002)

@@ -116,9 +116,9 @@ def main() -> int:
     lines = [
         "# `flowtrack demo --input` on sequences flowtrack did not render (issue 15)",
         "",
-        "Three boxes on a table rendered by `benchmarks/_boxes.py` (shares no code with flowtrack: its own ray "
-        "caster, TUM fr1 camera, textures, Kinect-like depth and sensor clocks; two boxes cross and the far "
-        "one is partly hidden, the third turns on an arc), run by the command line as a user would "
+        "Three boxes on a table rendered by `benchmarks/_boxes.py` (shares no code with flowtrack: its own "
+        "ray caster, TUM fr1 camera, textures, Kinect-like depth and sensor clocks; two boxes cross and the "
+        "far one is partly hidden, the third turns on an arc), run by the command line as a user would "
         "(`flowtrack demo --input DIR --intrinsics ... --no-real-data --no-gif`, every frame), `tracks.csv` "
         "scored against the box centres (`objects.csv`) with CLEAR-MOT at 15 cm over every frame of the "
         "sequence. Bar: MOTA >= 0.75 and at most one ID switch, on the confirmed rows. *Reported* also "
@@ -128,8 +128,8 @@ def main() -> int:
         "of a matched track from the box centre: the tracks follow the centroid of the visible surface, "
         "a few cm nearer the camera than the centre.",
         "",
-        "| sequence | frames (with rows) | MOTA | ID switches | FP | misses | MOTP (m) | reported: MOTA / IDsw "
-        "| peer: MOTA / IDsw | time | bar met |",
+        "| sequence | frames (with rows) | MOTA | ID switches | FP | misses | MOTP (m) "
+        "| reported: MOTA / IDsw | peer: MOTA / IDsw | time | bar met |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|",
         *rows,
         "",

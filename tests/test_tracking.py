@@ -943,12 +943,11 @@ def test_reacquire_hands_a_track_born_near_a_coasting_one_back_to_its_id():
     assert plain[-1] == [(1, "confirmed"), (2, "confirmed")]  # and id 0 dies after max_misses
     trk, ids = _hidden_and_back(0.08, 0.15)
     assert ids[8] == [(0, "coasting"), (1, "confirmed")]
-    assert ids[9] == [(0, "coasting"), (1, "confirmed")]  # the newborn is tentative (min_hits = 2)
-    assert ids[10:] == [[(0, "confirmed"), (1, "confirmed")]] * 4  # confirmed: handed to id 0
-    # track 0 now follows the object where it is, with the newborn's state (not the old prediction)
+    assert ids[9:] == [[(0, "confirmed"), (1, "confirmed")]] * 5  # re-acquired on its return
+    # track 0 now follows the object where it is: restarted from the detection, not the old prediction
     last = {t.id: t for t in trk.tracks}
     np.testing.assert_allclose(last[0].position, [0.13, 0.08], atol=0.01)
-    assert 2 not in last
+    assert {tr.id for _, tracks in trk.history() for tr in tracks} == {0, 1}  # no other track was started
 
 
 def test_reacquire_leaves_far_tracks_and_the_default_alone():
@@ -966,3 +965,26 @@ def test_reacquire_with_velocity_updates_and_bad_radius():
     assert ids[-1] == [(0, "confirmed"), (1, "confirmed")]
     with pytest.raises(ValueError, match="reacquire_radius"):
         MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, reacquire_radius=0.0)
+
+
+def test_reacquire_hands_back_a_second_piece_that_took_over_the_detections():
+    # An object seen as one detection, then for one frame as two (a second piece 5 cm off, which
+    # starts a tentative track while the first still has its track's detection), then only the second
+    # piece: its young track is handed to the object's track, which keeps id 0.
+    from flowtrack.tracking import MultiObjectTracker
+
+    def run(radius):
+        trk = MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, dim=2, min_hits=2, max_misses=5,
+                                 reacquire_radius=radius)
+        out = []
+        for k in range(12):
+            obj = np.array([0.01 * k, 0.0])
+            piece = obj + np.array([0.0, 0.05])
+            Z = obj[None] if k < 6 else (np.vstack([obj, piece]) if k == 6 else piece[None])
+            out.append(sorted((t.id, t.status) for t in trk.step(Z)))
+        return out
+
+    plain, handed = run(None), run(0.15)
+    assert plain[6] == handed[6] == [(0, "confirmed")]  # the second piece's track is tentative
+    assert plain[7] == [(0, "coasting"), (1, "confirmed")]
+    assert handed[7:] == [[(0, "confirmed")]] * 5

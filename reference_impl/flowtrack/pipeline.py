@@ -197,11 +197,13 @@ class PipelineConfig:
     #: slides, so its track may coast off its path and miss the object's return; 0.15 m is about a
     #: tabletop object's size. None: off
     track_reacquire_radius: float | None = 0.15
-    #: pieces split by a nearer occluder are one object (:func:`detection_pieces`' ``occluders``) when their
-    #: mean velocities differ by at most this (m/s; a box turning at 0.5 rad/s whose two visible ends are
-    #: 10 cm apart differs by 0.05 m/s), ...
-    occlusion_merge_velocity: float = 0.05
-    occlusion_max_gap: float = 0.25  #: ... their closest points are at most this far apart (m), ...
+    #: two pieces are one rigid object (:func:`detection_pieces`' ``rigid_merge`` and ``occluders``) when the
+    #: rigid motion fitted to both adds at most this residual (m/s, in quadrature) to their own fits; two
+    #: pieces of equal size that move differently add about half their relative speed
+    rigid_merge_tolerance: float = 0.015
+    #: pieces split by a nearer occluder (:func:`detection_pieces`' ``occluders``) are merged when they are
+    #: one rigid object, their closest points are at most this far apart (m), ...
+    occlusion_max_gap: float = 0.25
     occlusion_margin: float = 0.02  #: ... and the surface between them is nearer by more than this (m)
 
 
@@ -249,8 +251,8 @@ def flow_partners(n: int, dt: float, interval: float = 0.1) -> list[int]:
     With :math:`k = \max(1, \operatorname{round}(\text{interval} / \Delta t))`, frame t is paired with
     t + k while that exists, and the last k frames with t − k (the flow of that pair, negated, is the
     velocity at t: every frame gets detections, the last one included). In a sequence shorter than
-    2k frames a frame with neither is paired with its farthest frame. The velocity of a pair is the mean over its
-    interval, :math:`(X_{t+k} - X_t) / (k\,\Delta t)`: its noise falls like 1/k and a constant
+    2k frames a frame with neither is paired with its farthest frame. The velocity of a pair is the
+    mean over its interval, :math:`(X_{t+k} - X_t) / (k\,\Delta t)`: its noise falls like 1/k and a constant
     velocity is unchanged.
 
     Parameters
@@ -279,7 +281,7 @@ def flow_partners(n: int, dt: float, interval: float = 0.1) -> list[int]:
     n = positive_int(n, "n", minimum=2)
     dt = positive(dt, "dt")
     interval = positive(interval, "interval")
-    k = max(1, int(round(interval / dt)))
+    k = max(1, round(interval / dt))
     out = []
     for t in range(n):
         if t + k <= n - 1:
@@ -516,7 +518,7 @@ def support_planes(points, config: PipelineConfig | None = None) -> np.ndarray:
 
 def detection_pieces(points, clusters, flow, config: PipelineConfig | None = None, next_points=None,
                      dt: float | None = None, *, min_speed: float | None = None,
-                     images=None, occluders=None) -> list[np.ndarray]:
+                     images=None, occluders=None, rigid_merge: bool = False) -> list[np.ndarray]:
     r"""The point sets of :func:`detections_from_clusters`' detections, in the same order.
 
     Parameters are those of :func:`detections_from_clusters`, and:
@@ -535,14 +537,25 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
         :math:`\pi(X_i + v_i\,\Delta t)`. Geometry alone cannot see a textured surface slide along
         itself (a box pushed along its long face stays on that face's plane, and a turning box
         sweeps its faces over themselves); its texture can.
+    rigid_merge : bool
+        Merge touching pieces (closest points within ``cluster_radius``) that one rigid motion
+        explains: a turning object's faces move at different velocities, so the motion clustering
+        (by velocity similarity) may split it. Pieces a and b are merged when the rigid motion fitted
+        to their union's flow (:func:`flowtrack.motion.rigid_motion_from_flow`) adds at most
+        ``rigid_merge_tolerance`` (m/s) to the residuals of their own fits,
+        :math:`\sqrt{e_{ab}^2 - (n_a e_a^2 + n_b e_b^2)/(n_a + n_b)}` with :math:`e` the residual rms:
+        a noisy flow leaves large residuals in every fit, but only two motions add to them (two
+        pieces of equal size whose velocities differ by :math:`\Delta` add about
+        :math:`|\Delta|/2`).
     occluders : tuple (depth_t, camera), optional
         The depth image of frame t (metres, 0 = none) and the camera: pieces split by something in
         front of them are merged into one detection. An object partly hidden by a nearer one shows
-        two pieces with one motion; pieces a and b are merged when their mean velocities differ by
-        at most ``occlusion_merge_velocity``, their closest points are at most ``occlusion_max_gap``
-        apart, and between the image projections of those points the depth image, once the
-        pieces' own surface at either end is passed, is nearer than both points by more than
-        ``occlusion_margin`` along at least half of the segment (merges are transitive).
+        two pieces with one rigid motion (not one velocity: a turning box's two ends move apart);
+        pieces a and b are merged when their closest points are at most ``occlusion_max_gap``
+        apart, between the image projections of those points the depth image, once the pieces' own
+        surface at either end is passed, is nearer than both points by more than
+        ``occlusion_margin`` along at least half of the segment, and one rigid motion explains
+        both (as for ``rigid_merge``, ``rigid_merge_tolerance``); merges are transitive.
 
     Returns
     -------
@@ -593,17 +606,70 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
                 if tree is not None:
                     d_static = np.median(tree.query(P[piece])[0])
                     d_moving = np.median(tree.query(P[piece] + dt * flow[piece])[0])
-                    if d_static <= d_moving and (grey is None or _colour_static(grey, P[piece], flow[piece], dt)):
+                    if d_static <= d_moving and (
+                            grey is None or _colour_static(grey, P[piece], flow[piece], dt)):
                         continue
                 pieces.append(piece)
+    if rigid_merge and len(pieces) > 1:
+        pieces = _merge_rigid(P, pieces, flow, dt if dt is not None else 0.1, cfg)
     if occluders is not None and len(pieces) > 1:
         if len(occluders) != 2:
             raise ValueError("occluders must be (depth_t, camera)")
         depth = np.asarray(occluders[0], dtype=np.float64)
         if depth.ndim != 2:
             raise ValueError(f"occluders[0] must be a depth image of shape (H, W), got {depth.shape}")
-        pieces = _merge_occluded(P, pieces, flow, depth, occluders[1], cfg)
+        pieces = _merge_occluded(P, pieces, flow, depth, occluders[1], cfg, dt if dt is not None else 0.1)
     return pieces
+
+
+def _union_find_groups(n: int, pairs) -> list[list[int]]:
+    parent = list(range(n))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for a, b in pairs:
+        parent[find(b)] = find(a)
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(find(i), []).append(i)
+    return sorted(groups.values(), key=min)
+
+
+def _rigid_rms(P, flow, idx, dt) -> float:
+    """Residual rms (m/s) of the rigid motion fitted to the flow of the points ``idx``."""
+    from .motion import rigid_motion_from_flow
+
+    return rigid_motion_from_flow(P[idx], flow[idx], dt).residual_rms
+
+
+def _one_rigid_motion(P, flow, a, b, rms_a, rms_b, dt, tol) -> bool:
+    r"""Whether one rigid motion explains pieces ``a`` and ``b``: the residual it adds to their own
+    fits, :math:`\sqrt{e_{ab}^2 - (n_a e_a^2 + n_b e_b^2)/(n_a + n_b)}`, is at most ``tol`` (m/s)."""
+    union = np.concatenate([a, b])
+    pooled = (len(a) * rms_a**2 + len(b) * rms_b**2) / len(union)
+    return bool(_rigid_rms(P, flow, union, dt) ** 2 - pooled <= tol**2)
+
+
+def _merge_rigid(P, pieces, flow, dt, cfg) -> list[np.ndarray]:
+    from scipy.spatial import cKDTree
+
+    own = [_rigid_rms(P, flow, p, dt) for p in pieces]
+    trees = [cKDTree(P[p]) for p in pieces]
+    pairs = []
+    for a in range(len(pieces)):
+        for b in range(a + 1, len(pieces)):
+            gap = trees[a].query(P[pieces[b]], distance_upper_bound=cfg.cluster_radius)[0].min()
+            if gap > cfg.cluster_radius:
+                continue  # not touching
+            tol = cfg.rigid_merge_tolerance
+            if _one_rigid_motion(P, flow, pieces[a], pieces[b], own[a], own[b], dt, tol):
+                pairs.append((a, b))
+    groups = _union_find_groups(len(pieces), pairs)
+    return [np.sort(np.concatenate([pieces[i] for i in g])) for g in groups]
 
 
 def _occluded_between(xa, xb, depth, cam, margin: float) -> bool:
@@ -628,34 +694,26 @@ def _occluded_between(xa, xb, depth, cam, margin: float) -> bool:
     return bool(len(inner) >= 0.5 * len(z) and inner[valid].mean() >= 0.8)
 
 
-def _merge_occluded(P, pieces, flow, depth, cam, cfg) -> list[np.ndarray]:
+def _merge_occluded(P, pieces, flow, depth, cam, cfg, dt) -> list[np.ndarray]:
     from scipy.spatial import cKDTree
 
     n = len(pieces)
-    parent = list(range(n))
-
-    def find(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    vel = [flow[p].mean(axis=0) for p in pieces]
     trees = [cKDTree(P[p]) for p in pieces]
+    own = [_rigid_rms(P, flow, p, dt) for p in pieces]
+    pairs = []
     for a in range(n):
         for b in range(a + 1, n):
-            if find(a) == find(b) or np.linalg.norm(vel[a] - vel[b]) > cfg.occlusion_merge_velocity:
-                continue
             d, j = trees[a].query(P[pieces[b]])
             ib = int(np.argmin(d))
             if d[ib] > cfg.occlusion_max_gap:
                 continue
-            if _occluded_between(P[pieces[a]][j[ib]], P[pieces[b]][ib], depth, cam, cfg.occlusion_margin):
-                parent[find(b)] = find(a)
-    groups: dict[int, list[int]] = {}
-    for i in range(n):
-        groups.setdefault(find(i), []).append(i)
-    return [np.sort(np.concatenate([pieces[i] for i in g])) for g in sorted(groups.values(), key=min)]
+            if not _occluded_between(P[pieces[a]][j[ib]], P[pieces[b]][ib], depth, cam, cfg.occlusion_margin):
+                continue
+            tol = cfg.rigid_merge_tolerance
+            if _one_rigid_motion(P, flow, pieces[a], pieces[b], own[a], own[b], dt, tol):
+                pairs.append((a, b))
+    groups = _union_find_groups(n, pairs)
+    return [np.sort(np.concatenate([pieces[i] for i in g])) for g in groups]
 
 
 def _grey(img, name: str) -> np.ndarray:

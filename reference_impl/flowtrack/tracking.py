@@ -24,10 +24,13 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
    - a confirmed track without a detection is *coasting* (occluded): it is only predicted. It is
      deleted when its consecutive misses exceed ``max_misses``, i.e. at the ``max_misses + 1``-th
      consecutive miss; an occlusion of up to ``max_misses`` frames keeps the track and its id;
-   - with ``reacquire_radius`` r, a track confirmed while a confirmed track is coasting within r of
-     it is that object coming back (out of its gate: its velocity was learnt while it was being
-     hidden, from a shrinking visible surface): the coasting track takes the new track's state and
-     keeps its id, and the new track ends (nearest pairs first, each track once).
+   - with ``reacquire_radius`` r, a coasting confirmed track *re-acquires* its object: an unassigned
+     detection within r of it (outside its gate: its velocity was learnt while the object was being
+     hidden, from a shrinking visible surface, or the visible part jumped) restarts the track from
+     that detection's birth state instead of starting a new track, and the track keeps its id
+     (nearest pairs first, each track and detection once); likewise a young confirmed track (at most
+     ``max_misses`` frames old) detected within r of an older coasting one — a second piece of the
+     object that took over its detections — hands its state to the older track and ends.
 
 Track ids come from a counter and are never reused.
 
@@ -381,9 +384,9 @@ class MultiObjectTracker:
         table's (support plane's) normal: the camera's z is its optical axis, and a wrong plane turns
         the velocity the wrong way.
     reacquire_radius : float, optional
-        Re-acquisition after an occlusion (m; see the module docstring): a newly confirmed track
-        within this distance of a coasting confirmed track hands its state to that track, which
-        keeps its id. Default None: off.
+        Re-acquisition after an occlusion (m; see the module docstring): a young confirmed track
+        within this distance of an older coasting confirmed track hands its state to that track,
+        which keeps its id. Default None: off.
 
     With any of ``velocity_update``, ``p_detect`` or ``motion_model="turn_rate"`` the tracker runs on
     a :class:`flowtrack.motion.MotionBatchFilter` and its own association and update (the
@@ -524,12 +527,42 @@ class MultiObjectTracker:
         return Z, V
 
     # -- the loop ------------------------------------------------------------------------------------
-    def _reacquire(self, newly: np.ndarray) -> np.ndarray:
-        """Hand each newly confirmed track within ``reacquire_radius`` of a coasting confirmed track to
-        that track (nearest pairs first); return the mask of the tracks handed over."""
-        absorbed = np.zeros(len(newly), dtype=bool)
-        coast = np.flatnonzero(self._confirmed & (self._misses > 0) & ~newly)
-        new = np.flatnonzero(newly & (self._misses == 0))
+    def _reacquire_at_birth(self, Z, x0, P0) -> np.ndarray:
+        """Re-acquisition of unassigned detections: each coasting confirmed track takes the nearest
+        detection within ``reacquire_radius`` (nearest pairs first) and restarts from its birth state
+        ``(x0, P0)``, keeping its id; returns the mask of the detections taken."""
+        taken = np.zeros(len(Z), dtype=bool)
+        coast = np.flatnonzero(self._confirmed & (self._misses > 0))
+        if coast.size == 0 or len(Z) == 0:
+            return taken
+        x, P = np.array(self.kf.x), np.array(self.kf.P)
+        d = self.dim
+        D = np.linalg.norm(Z[:, None, :d] - x[None, coast, :d], axis=2)
+        used = set()
+        for flat in np.argsort(D, axis=None, kind="stable"):
+            a, b = divmod(int(flat), coast.size)
+            if D[a, b] > self.reacquire_radius:
+                break
+            if taken[a] or b in used:
+                continue
+            taken[a] = True
+            used.add(b)
+            i = coast[b]
+            x[i], P[i] = x0[a], P0[a]
+            self._misses[i] = 0
+            self._hits[i] += 1
+            self._anchor_sum[i], self._anchor_n[i] = Z[a], 1
+        if taken.any():
+            self.kf.x, self.kf.P = x, P
+        return taken
+
+    def _reacquire(self) -> np.ndarray:
+        """Hand each young confirmed track (detected this frame, at most ``max_misses`` frames old)
+        within ``reacquire_radius`` of an older coasting confirmed track to that track (nearest pairs
+        first); return the mask of the tracks handed over."""
+        absorbed = np.zeros(len(self._ids), dtype=bool)
+        coast = np.flatnonzero(self._confirmed & (self._misses > 0))
+        new = np.flatnonzero(self._confirmed & (self._misses == 0) & (self._age <= self.max_misses))
         if coast.size == 0 or new.size == 0:
             return absorbed
         x, P = np.array(self.kf.x), np.array(self.kf.P)
@@ -541,7 +574,7 @@ class MultiObjectTracker:
             a, b = divmod(int(flat), coast.size)
             if D[a, b] > self.reacquire_radius:
                 break
-            if a in used_new or b in used_coast:
+            if a in used_new or b in used_coast or self._ids[new[a]] < self._ids[coast[b]]:
                 continue
             used_new.add(a)
             used_coast.add(b)
@@ -625,9 +658,8 @@ class MultiObjectTracker:
         self._anchor_sum[matched] += Z[matches[:, 1]]
         self._anchor_n[matched] += 1
         confirm, reject = confirmer.decide(self._scores, self._hits)
-        newly = np.asarray(confirm, dtype=bool) & ~self._confirmed
         self._confirmed |= confirm
-        absorbed = self._reacquire(newly) if self.reacquire_radius is not None and newly.any() else None
+        absorbed = self._reacquire() if self.reacquire_radius is not None else None
         # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
         dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
         dead |= reject & ~self._confirmed
@@ -641,12 +673,16 @@ class MultiObjectTracker:
                 a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed,
                                   self._scores, self._anchor_sum, self._anchor_n)
             )
-        # births from unassigned detections
+        # births from unassigned detections (a coasting track re-acquires the nearest one first)
         if unmatched_dets.size:
-            k = unmatched_dets.size
             x0, P0 = self.initiator.initiate(Z[unmatched_dets], None if V is None else V[unmatched_dets])
             if self._flow is not None:
                 x0, P0 = self._flow.birth_states(x0, P0, None if Rv is None else Rv[unmatched_dets])
+            if self.reacquire_radius is not None:
+                back = self._reacquire_at_birth(Z[unmatched_dets], x0, P0)
+                x0, P0, unmatched_dets = x0[~back], P0[~back], unmatched_dets[~back]
+        if unmatched_dets.size:
+            k = unmatched_dets.size
             kf.append(x0, P0)
             self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + k)])
             self._next_id += k

@@ -45,7 +45,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     run_demo(
         out=Path(args.out),
         n_objects=args.objects,
-        n_frames=args.frames,
+        n_frames=args.frames if args.frames is not None or args.input is not None else 24,  # --input: all
         image_size=(args.height, args.width),
         seed=args.seed,
         progress=not args.no_progress,

@@ -136,7 +136,8 @@ def assign_tracks(tracks: dict[int, np.ndarray], truth: dict[int, np.ndarray], g
     return {ti[i]: oi[j] for i, j in zip(r, c) if C[i, j] <= gate}
 
 
-def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig, partner: int | None = None):
+def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig,
+                           partner: int | None = None):
     """Detections of frame ``t`` with their velocity measurements: ``(Z (K, 3), U (K, 3), C (K, 3, 3))``.
 
     ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
@@ -162,7 +163,7 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
         depth_t1 = np.where(depth_t1 <= cfg.max_depth, depth_t1, 0.0)
     pieces = detection_pieces(X, clusters, flow, cfg, next_points=next_points, dt=dt,
                               min_speed=cfg.rgbd_min_speed, images=(inp.rgb[t], inp.rgb[s], inp.camera),
-                              occluders=(depth_t, inp.camera))
+                              occluders=(depth_t, inp.camera), rigid_merge=True)
     Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
     # each piece's covariance is that of its (main) cluster: a point of it stands for the piece (a piece
     # merged across an occluder has its centroid in the gap, maybe nearest to the occluder's points)
@@ -212,7 +213,8 @@ def run_demo(
     ``frame`` its index in the input. The synthetic scene processes frames 0 … n−2, each paired with
     the next one; real input processes every frame it reads, each paired with the frame
     ``flow_interval`` later (the last ones with the frame that long before,
-    :func:`flowtrack.pipeline.flow_partners`), and with ``step`` frame k read is input frame k·step. With ground truth, ``metrics.json["tracking_ablation"]``
+    :func:`flowtrack.pipeline.flow_partners`), and with ``step`` frame k read is input frame k·step.
+    With ground truth, ``metrics.json["tracking_ablation"]``
     compares position-only and flow-aided tracking on the same detections
     (:func:`flowtrack.tracking_eval.tracking_ablation`); real input has None there.
 
@@ -282,7 +284,7 @@ def run_demo(
     from flowtrack.tracking import MultiObjectTracker
 
     # max_misses counts flow intervals: input faster than 1 / flow_interval coasts as long in seconds
-    frames_per_interval = max(1, int(round(cfg.flow_interval / dt)))
+    frames_per_interval = max(1, round(cfg.flow_interval / dt))
     tracker_options = dict(min_hits=cfg.min_hits, max_misses=cfg.max_misses * frames_per_interval,
                            gate_prob=cfg.gate_prob, reacquire_radius=cfg.track_reacquire_radius,
                            confirmer=track_confirmer(cfg))
@@ -350,7 +352,8 @@ def run_demo(
             gt_hist.setdefault(k, []).append(p)
     last = n_track - 1
     # tracker frame k = input frame k (or the k-th frame read with --step)
-    write_tracks_csv(out / "tracks.csv", tracker, frames=inp.frame_index[:n_track] if inp.frame_index else None)
+    write_tracks_csv(out / "tracks.csv", tracker,
+                     frames=inp.frame_index[:n_track] if inp.frame_index else None)
 
     # prediction N frames ahead: the tracker's own filter, predicted without updates
     ahead = tracker.predict_ahead(predict_ahead)
