@@ -336,6 +336,7 @@ def _ablation(d, flow_options=None, truth=None, velocities=None, max_misses=None
         tracker_options={"min_hits": cfg.min_hits, "gate_prob": cfg.gate_prob,
                          "max_misses": cfg.max_misses if max_misses is None else max_misses,
                          "reacquire_radius": cfg.track_reacquire_radius,
+                         "birth_exclusion_radius": cfg.track_birth_exclusion_radius,
                          "confirmer": track_confirmer(cfg)})
 
 

@@ -47,7 +47,8 @@ SEQUENCES = [
 ]
 QUICK = [("30 Hz, textured boxes, 320x240, the first second (quick)",
           dict(seed=0, n_frames=30, rate_hz=30.0, size=(240, 320)))]
-PEER_CONFIG = "DemoConfig(flow_interval=1e-9, track_reacquire_radius=None)"
+PEER_CONFIG = ("DemoConfig(flow_interval=1e-9, track_reacquire_radius=None, "
+               "track_birth_exclusion_radius=None)")
 
 
 def run_cli(seq: Path, intrinsics: str, out: Path) -> float:

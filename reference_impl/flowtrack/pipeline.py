@@ -197,6 +197,11 @@ class PipelineConfig:
     #: slides, so its track may coast off its path and miss the object's return; 0.15 m is about a
     #: tabletop object's size. None: off
     track_reacquire_radius: float | None = 0.15
+    #: no track starts from a detection this close (m) to a confirmed track detected in the same frame
+    #: (:class:`flowtrack.tracking.MultiObjectTracker`'s ``birth_exclusion_radius``): a second piece of
+    #: an object (cut by an occluder, or a face that moves differently) must not become a second track.
+    #: None: off
+    track_birth_exclusion_radius: float | None = 0.15
     #: two pieces are one rigid object (:func:`detection_pieces`' ``rigid_merge`` and ``occluders``) when the
     #: rigid motion fitted to both adds at most this residual (m/s, in quadrature) to their own fits; two
     #: pieces of equal size that move differently add about half their relative speed

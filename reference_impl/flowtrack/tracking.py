@@ -30,7 +30,9 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
      that detection's birth state instead of starting a new track, and the track keeps its id
      (nearest pairs first, each track and detection once); likewise a young confirmed track (at most
      ``max_misses`` frames old) detected within r of an older coasting one — a second piece of the
-     object that took over its detections — hands its state to the older track and ends.
+     object that took over its detections — hands its state to the older track and ends;
+   - with ``birth_exclusion_radius`` r, an unassigned detection within r of a confirmed track that
+     was detected in the same frame starts no track: it is another piece of that object.
 
 Track ids come from a counter and are never reused.
 
@@ -387,6 +389,11 @@ class MultiObjectTracker:
         Re-acquisition after an occlusion (m; see the module docstring): a young confirmed track
         within this distance of an older coasting confirmed track hands its state to that track,
         which keeps its id. Default None: off.
+    birth_exclusion_radius : float, optional
+        No track is started from a detection within this distance (m) of a confirmed track that was
+        detected in the same frame: it is another piece of that object (a part cut off by an
+        occluder, a face that moves differently), not a new one. Coasting tracks re-acquire first
+        (``reacquire_radius``). Default None: every unassigned detection starts a track.
 
     With any of ``velocity_update``, ``p_detect`` or ``motion_model="turn_rate"`` the tracker runs on
     a :class:`flowtrack.motion.MotionBatchFilter` and its own association and update (the
@@ -456,10 +463,13 @@ class MultiObjectTracker:
         omega_var=4.0,
         turn_axis=None,
         reacquire_radius=None,
+        birth_exclusion_radius=None,
     ):
         self.dt = positive(dt, "dt")
         self.reacquire_radius = None if reacquire_radius is None else positive(reacquire_radius,
                                                                                "reacquire_radius")
+        self.birth_exclusion_radius = (None if birth_exclusion_radius is None
+                                       else positive(birth_exclusion_radius, "birth_exclusion_radius"))
         self.q = nonnegative(q, "q")
         self.dim = spatial_dim(dim, "dim")
         F, H, Q, R = constant_velocity_model(self.dt, self.q, r, self.dim)
@@ -660,6 +670,13 @@ class MultiObjectTracker:
         confirm, reject = confirmer.decide(self._scores, self._hits)
         self._confirmed |= confirm
         absorbed = self._reacquire() if self.reacquire_radius is not None else None
+        # where confirmed tracks were detected this frame (no births near them: birth_exclusion_radius)
+        held = np.zeros((0, self.dim))
+        if self.birth_exclusion_radius is not None:
+            held_rows = matched[self._confirmed[matched]]
+            if absorbed is not None:
+                held_rows = held_rows[~absorbed[held_rows]]
+            held = np.array(self.kf.x)[held_rows, : self.dim]
         # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
         dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
         dead |= reject & ~self._confirmed
@@ -681,6 +698,10 @@ class MultiObjectTracker:
             if self.reacquire_radius is not None:
                 back = self._reacquire_at_birth(Z[unmatched_dets], x0, P0)
                 x0, P0, unmatched_dets = x0[~back], P0[~back], unmatched_dets[~back]
+            if len(held) and unmatched_dets.size:
+                d2 = ((Z[unmatched_dets][:, None, : self.dim] - held[None]) ** 2).sum(axis=2)
+                part = (d2 <= self.birth_exclusion_radius**2).any(axis=1)
+                x0, P0, unmatched_dets = x0[~part], P0[~part], unmatched_dets[~part]
         if unmatched_dets.size:
             k = unmatched_dets.size
             kf.append(x0, P0)

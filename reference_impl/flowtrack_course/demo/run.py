@@ -287,6 +287,7 @@ def run_demo(
     frames_per_interval = max(1, round(cfg.flow_interval / dt))
     tracker_options = dict(min_hits=cfg.min_hits, max_misses=cfg.max_misses * frames_per_interval,
                            gate_prob=cfg.gate_prob, reacquire_radius=cfg.track_reacquire_radius,
+                           birth_exclusion_radius=cfg.track_birth_exclusion_radius,
                            confirmer=track_confirmer(cfg))
     tracker = MultiObjectTracker(dt=dt, q=cfg.track_q, r=cfg.track_r, dim=3, velocity_update=True,
                                  **tracker_options)
