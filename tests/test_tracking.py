@@ -967,24 +967,28 @@ def test_reacquire_with_velocity_updates_and_bad_radius():
         MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, reacquire_radius=0.0)
 
 
-def test_reacquire_hands_back_a_second_piece_that_took_over_the_detections():
-    # An object seen as one detection, then for one frame as two (a second piece 5 cm off, which
-    # starts a tentative track while the first still has its track's detection), then only the second
-    # piece: its young track is handed to the object's track, which keeps id 0.
+def test_birth_exclusion_keeps_a_second_piece_from_becoming_a_track():
+    # from frame 4 on the object also shows a second piece 6 cm off (moving with it); a third
+    # detection 30 cm away is another object and still starts a track
     from flowtrack.tracking import MultiObjectTracker
 
     def run(radius):
-        trk = MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, dim=2, min_hits=2, max_misses=5,
-                                 reacquire_radius=radius)
-        out = []
-        for k in range(12):
+        trk = MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, dim=2, min_hits=2, max_misses=3,
+                                 birth_exclusion_radius=radius)
+        for k in range(10):
             obj = np.array([0.01 * k, 0.0])
-            piece = obj + np.array([0.0, 0.05])
-            Z = obj[None] if k < 6 else (np.vstack([obj, piece]) if k == 6 else piece[None])
-            out.append(sorted((t.id, t.status) for t in trk.step(Z)))
-        return out
+            Z = obj[None] if k < 4 else np.vstack([obj, obj + np.array([0.0, 0.06]),
+                                                   obj + np.array([0.0, 0.30])])
+            reported = trk.step(Z)
+        return sorted(t.id for t in reported), trk
 
-    plain, handed = run(None), run(0.15)
-    assert plain[6] == handed[6] == [(0, "confirmed")]  # the second piece's track is tentative
-    assert plain[7] == [(0, "coasting"), (1, "confirmed")]
-    assert handed[7:] == [[(0, "confirmed")]] * 5
+    ids_plain, _ = run(None)
+    ids_excl, trk = run(0.15)
+    assert ids_plain == [0, 1, 2]  # the piece became a track of its own
+    assert ids_excl == [0, 1]  # only the object far away did
+    pos = {t.id: t.position for t in trk.tracks}
+    assert sorted(pos) == [0, 1]  # not even a tentative track on the piece
+    np.testing.assert_allclose(pos[0], [0.09, 0.0], atol=0.01)  # on the object itself
+    np.testing.assert_allclose(pos[1], [0.09, 0.30], atol=0.01)
+    with pytest.raises(ValueError, match="birth_exclusion_radius"):
+        MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, birth_exclusion_radius=-1.0)

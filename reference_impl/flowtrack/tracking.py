@@ -28,9 +28,7 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
      detection within r of it (outside its gate: its velocity was learnt while the object was being
      hidden, from a shrinking visible surface, or the visible part jumped) restarts the track from
      that detection's birth state instead of starting a new track, and the track keeps its id
-     (nearest pairs first, each track and detection once); likewise a young confirmed track (at most
-     ``max_misses`` frames old) detected within r of an older coasting one — a second piece of the
-     object that took over its detections — hands its state to the older track and ends;
+     (nearest pairs first, each track and detection once);
    - with ``birth_exclusion_radius`` r, an unassigned detection within r of a confirmed track that
      was detected in the same frame starts no track: it is another piece of that object.
 
@@ -386,9 +384,9 @@ class MultiObjectTracker:
         table's (support plane's) normal: the camera's z is its optical axis, and a wrong plane turns
         the velocity the wrong way.
     reacquire_radius : float, optional
-        Re-acquisition after an occlusion (m; see the module docstring): a young confirmed track
-        within this distance of an older coasting confirmed track hands its state to that track,
-        which keeps its id. Default None: off.
+        Re-acquisition after an occlusion (m; see the module docstring): a coasting confirmed track
+        takes the nearest unassigned detection within this distance and restarts from it, keeping
+        its id. Default None: off.
     birth_exclusion_radius : float, optional
         No track is started from a detection within this distance (m) of a confirmed track that was
         detected in the same frame: it is another piece of that object (a part cut off by an
@@ -566,39 +564,6 @@ class MultiObjectTracker:
             self.kf.x, self.kf.P = x, P
         return taken
 
-    def _reacquire(self) -> np.ndarray:
-        """Hand each young confirmed track (detected this frame, at most ``max_misses`` frames old)
-        within ``reacquire_radius`` of an older coasting confirmed track to that track (nearest pairs
-        first); return the mask of the tracks handed over."""
-        absorbed = np.zeros(len(self._ids), dtype=bool)
-        coast = np.flatnonzero(self._confirmed & (self._misses > 0))
-        new = np.flatnonzero(self._confirmed & (self._misses == 0) & (self._age <= self.max_misses))
-        if coast.size == 0 or new.size == 0:
-            return absorbed
-        x, P = np.array(self.kf.x), np.array(self.kf.P)
-        d = self.dim
-        D = np.linalg.norm(x[new, None, :d] - x[None, coast, :d], axis=2)
-        order = np.argsort(D, axis=None, kind="stable")
-        used_new, used_coast = set(), set()
-        for flat in order:
-            a, b = divmod(int(flat), coast.size)
-            if D[a, b] > self.reacquire_radius:
-                break
-            if a in used_new or b in used_coast or self._ids[new[a]] < self._ids[coast[b]]:
-                continue
-            used_new.add(a)
-            used_coast.add(b)
-            i, j = coast[b], new[a]
-            x[i], P[i] = x[j], P[j]
-            self._misses[i] = 0
-            self._hits[i] += self._hits[j]
-            self._scores[i] = max(self._scores[i], self._scores[j])
-            self._anchor_sum[i], self._anchor_n[i] = self._anchor_sum[j], self._anchor_n[j]
-            absorbed[j] = True
-        if absorbed.any():
-            self.kf.x, self.kf.P = x, P
-        return absorbed
-
     def step(self, detections, velocities=None, velocity_covs=None) -> list[Track]:
         """Process one frame of detections; return the reported (confirmed or coasting) tracks.
 
@@ -669,19 +634,13 @@ class MultiObjectTracker:
         self._anchor_n[matched] += 1
         confirm, reject = confirmer.decide(self._scores, self._hits)
         self._confirmed |= confirm
-        absorbed = self._reacquire() if self.reacquire_radius is not None else None
         # where confirmed tracks were detected this frame (no births near them: birth_exclusion_radius)
         held = np.zeros((0, self.dim))
         if self.birth_exclusion_radius is not None:
-            held_rows = matched[self._confirmed[matched]]
-            if absorbed is not None:
-                held_rows = held_rows[~absorbed[held_rows]]
-            held = np.array(self.kf.x)[held_rows, : self.dim]
+            held = np.array(self.kf.x)[matched[self._confirmed[matched]], : self.dim]
         # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
         dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
         dead |= reject & ~self._confirmed
-        if absorbed is not None:
-            dead |= absorbed
         if dead.any():
             keep = ~dead
             kf.keep(keep)
