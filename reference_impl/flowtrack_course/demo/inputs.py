@@ -29,6 +29,15 @@ class DemoInput:
     scene: object = None  # the synthetic Scene (ground truth), None for real input
     #: input frame index of each frame (real input read with ``step``: 0, step, 2 step, ...); None: 0, 1, ...
     frame_index: list | None = None
+    #: time of each frame (s; real input: its timestamps, which a sensor does not space evenly, and where
+    #: it dropped a frame the gap is two intervals); None: frame t at t * dt
+    stamps: np.ndarray | None = None
+
+    def interval(self, t: int, s: int) -> float:
+        """Time from frame ``t`` to frame ``s`` (s, > 0 for s > t)."""
+        if self.stamps is None:
+            return (s - t) * self.dt
+        return float(self.stamps[s] - self.stamps[t])
 
 
 def frame_cloud(inp: DemoInput, t: int, cfg: PipelineConfig, rng: np.random.Generator):
@@ -80,4 +89,4 @@ def load_input(input_dir, n_frames, n_objects, image_size, seed, noise, predict_
     if len(seq) < 2:
         raise ValueError(f"input {input_dir} has {len(seq)} usable frame(s); scene flow needs at least 2")
     return DemoInput(f"{'stereo' if stereo else 'RGB-D'} sequence {input_dir}", seq.camera, seq.dt, seq.rgb,
-                     seq.depth, len(seq), None, list(seq.indices) or None)
+                     seq.depth, len(seq), None, list(seq.indices) or None, np.asarray(seq.timestamps, float))

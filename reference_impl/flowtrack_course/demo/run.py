@@ -150,13 +150,16 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
 
     ``flow`` and ``next_points`` belong to the pair (``t``, ``partner``) (default ``t + 1``; see
     :func:`flowtrack.pipeline.flow_partners`): ``flow`` is the velocity toward frame ``partner``
-    over ``|partner - t| * inp.dt``. For a backward pair (``partner < t``) the returned ``U`` is
-    negated, so it is always the velocity at frame ``t`` forward in time.
+    over the time between the two frames (``DemoInput.interval``: their timestamps for real
+    input). For a backward pair (``partner < t``) the returned ``U`` is negated, so it is always the
+    velocity at frame ``t`` forward in time.
     """
     s = t + 1 if partner is None else int(partner)
     if s == t:
         raise ValueError(f"partner must differ from t={t}")
-    dt = abs(s - t) * inp.dt
+    dt = abs(inp.interval(t, s))
+    if not dt > 0:
+        raise ValueError(f"frames {t} and {s} have the same timestamp; timestamps must increase")
     depth_t, depth_t1 = inp.depth[t], inp.depth[s]
     if inp.scene is None:  # the real cloud drops points beyond max_depth: so do its pixels
         depth_t = np.where(depth_t <= cfg.max_depth, depth_t, 0.0)
@@ -319,7 +322,7 @@ def run_demo(
         nxt = cloud(s_)
         for j in [j for j in clouds if j < t - span]:
             del clouds[j]
-        pair_dt = abs(s_ - t) * dt  # the flow below is the velocity toward frame s_ over pair_dt
+        pair_dt = abs(inp.interval(t, s_))  # the flow below is the velocity toward frame s_ over pair_dt
         pair = FlowPair(t, X, gt_flow, labels_gt)
         t0 = time.perf_counter()
         rgbd = rgbd_cloud_flow(inp.rgb[t], inp.depth[t], inp.rgb[s_], inp.depth[s_], cam, pair_dt, X)
