@@ -196,12 +196,12 @@ class PipelineConfig:
     #: back from an occlusion. An object being hidden shows a shrinking visible surface whose centroid
     #: slides, so its track may coast off its path and miss the object's return; 0.15 m is about a
     #: tabletop object's size. None: off
-    track_reacquire_radius: float | None = 0.15
+    track_reacquire_radius: float | None = None
     #: no track starts from a detection this close (m) to a confirmed track detected in the same frame
     #: (:class:`flowtrack.tracking.MultiObjectTracker`'s ``birth_exclusion_radius``): a second piece of
     #: an object (cut by an occluder, or a face that moves differently) must not become a second track.
     #: None: off
-    track_birth_exclusion_radius: float | None = 0.15
+    track_birth_exclusion_radius: float | None = None
     #: two pieces are one rigid object (:func:`detection_pieces`' ``rigid_merge`` and ``occluders``) when the
     #: rigid motion fitted to both adds at most this residual (m/s, in quadrature) to their own fits; two
     #: pieces of equal size that move differently add about half their relative speed
@@ -541,7 +541,10 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
         :math:`\pi(X_i)` in the next image is no larger than at its moved position
         :math:`\pi(X_i + v_i\,\Delta t)`. Geometry alone cannot see a textured surface slide along
         itself (a box pushed along its long face stays on that face's plane, and a turning box
-        sweeps its faces over themselves); its texture can.
+        sweeps its faces over themselves); its texture can. A fourth element, the next frame's
+        depth image (metres, 0 = none), leaves out the points whose static pixel is covered there
+        by a surface more than 2 cm nearer: a moving object that passes over a static surface
+        changes that surface's colour without moving it.
     rigid_merge : bool
         Merge touching pieces (closest points within ``cluster_radius``) that one rigid motion
         explains: a turning object's faces move at different velocities, so the motion clustering
@@ -588,9 +591,12 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
     if images is not None:
         if tree is None:
             raise ValueError("images need next_points and dt")
-        if len(images) != 3:
-            raise ValueError("images must be (rgb_t, rgb_next, camera)")
-        grey = (_grey(images[0], "images[0]"), _grey(images[1], "images[1]"), images[2])
+        if len(images) not in (3, 4):
+            raise ValueError("images must be (rgb_t, rgb_next, camera[, depth_next])")
+        d1 = None
+        if len(images) == 4 and images[3] is not None:
+            d1 = np.asarray(images[3], dtype=np.float64)
+        grey = (_grey(images[0], "images[0]"), _grey(images[1], "images[1]"), images[2], d1)
         if grey[0].shape != grey[1].shape:
             raise ValueError(f"images[0] and images[1] must have the same size, got {grey[0].shape} and "
                              f"{grey[1].shape}")
@@ -733,8 +739,9 @@ def _grey(img, name: str) -> np.ndarray:
 
 def _colour_static(grey, X, v, dt) -> bool:
     """Whether the pixels of ``X`` at t match the next image at least as well at their static
-    positions as at their moved ones (median absolute grey difference, nearest pixel)."""
-    g0, g1, cam = grey
+    positions as at their moved ones (median absolute grey difference, nearest pixel); with the next
+    depth image, points whose static pixel is covered by a nearer surface there do not count."""
+    g0, g1, cam, d1 = grey
     H, W = g0.shape
 
     def pix(Y):
@@ -749,6 +756,9 @@ def _colour_static(grey, X, v, dt) -> bool:
     u0, r0, ok0 = pix(X)
     u1, r1, ok1 = pix(X + dt * v)
     ok = ok0 & ok1
+    if d1 is not None:  # something moved in front of the static pixel: its colour says nothing
+        z1 = np.where(ok, d1[np.clip(r0, 0, H - 1), np.clip(u0, 0, W - 1)], 0.0)
+        ok &= ~((z1 > 0) & (z1 < X[:, 2] - 0.02))
     if not ok.any():
         return True
     ref = g0[r0[ok], u0[ok]]
