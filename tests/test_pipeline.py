@@ -525,3 +525,25 @@ def test_detection_pieces_rigid_merge_joins_a_turning_box_split_by_velocity(spin
         assert len(got) == 1 and np.array_equal(got[0], np.arange(len(P)))
     else:
         assert sorted(map(tuple, got)) == sorted(map(tuple, plain))
+
+
+def test_detection_pieces_colour_test_ignores_static_surface_covered_at_t1():
+    # A static wall whose points carry a leaked flow of 0.2 m/s; at t+1 a nearer object (0.8 m) has
+    # moved over 60 % of it, and what it shows there happens to fit the leaked flow (the wall's
+    # texture 2 px on). Without the next depth image the colour test is fooled (the wall is kept as
+    # moving); with it the covered points do not count, and the rest says static.
+    from flowtrack.pipeline import detection_pieces
+
+    cam, img0, img1, X = _textured_wall(shift_px=0.0)
+    _, _, looks_moved, _ = _textured_wall(shift_px=2.0)
+    img1 = img1.copy()
+    img1[:, :48] = looks_moved[:, :48]
+    depth1 = np.ones((60, 80))
+    depth1[:, :48] = 0.8
+    flow = np.tile([0.2, 0.0, 0.0], (len(X), 1))
+    labels = np.zeros(len(X), dtype=int)
+    cfg = PipelineConfig(max_planes=0, min_detection_points=10)
+    fooled = detection_pieces(X, labels, flow, cfg, next_points=X, dt=0.1, images=(img0, img1, cam))
+    assert len(fooled) == 1
+    covered = (img0, img1, cam, depth1)
+    assert detection_pieces(X, labels, flow, cfg, next_points=X, dt=0.1, images=covered) == []

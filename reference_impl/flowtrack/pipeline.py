@@ -191,6 +191,9 @@ class PipelineConfig:
     #: with the frame ``k = round(flow_interval / dt)`` on (:func:`flow_partners`) and coasts tracks for
     #: ``max_misses * k`` frames, so the same thresholds hold in m/s and seconds at any frame rate
     flow_interval: float = 0.1
+    #: the demo calls a piece static only when colour agrees with geometry (:func:`detection_pieces`'
+    #: ``images``); False: geometry alone
+    colour_check: bool = True
     #: re-acquisition radius (m) of the tracker (:class:`flowtrack.tracking.MultiObjectTracker`'s
     #: ``reacquire_radius``): a track confirmed within this distance of a coasting one is that object
     #: back from an occlusion. An object being hidden shows a shrinking visible surface whose centroid
@@ -536,10 +539,11 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
         \overline{|v|}`. Pass the clustering's own threshold (the demo: ``rgbd_min_speed``).
     images : tuple (rgb_t, rgb_next, camera), optional
         With ``next_points``: the colour images of the two frames (uint8 (H, W, 3) or grey (H, W))
-        and the camera. A piece is then skipped as static only when colour agrees with geometry: the
-        median grey-level difference between each point's pixel at t and its static position
-        :math:`\pi(X_i)` in the next image is no larger than at its moved position
-        :math:`\pi(X_i + v_i\,\Delta t)`. Geometry alone cannot see a textured surface slide along
+        and the camera. Where geometry leans to static but cannot tell (the moved points' median
+        distance to the next cloud at most 1.5 times the static ones'), colour decides: the piece is
+        skipped as static only when the median grey-level difference between each point's pixel at
+        t and its static position :math:`\pi(X_i)` in the next image is no larger than at its moved
+        position :math:`\pi(X_i + v_i\,\Delta t)`. Geometry alone cannot see a textured surface slide along
         itself (a box pushed along its long face stays on that face's plane, and a turning box
         sweeps its faces over themselves); its texture can. A fourth element, the next frame's
         depth image (metres, 0 = none), leaves out the points whose static pixel is covered there
@@ -617,8 +621,10 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
                 if tree is not None:
                     d_static = np.median(tree.query(P[piece])[0])
                     d_moving = np.median(tree.query(P[piece] + dt * flow[piece])[0])
+                    # colour decides only where geometry cannot: both hypotheses fit about as well
+                    ambiguous = d_moving <= 1.5 * d_static
                     if d_static <= d_moving and (
-                            grey is None or _colour_static(grey, P[piece], flow[piece], dt)):
+                            grey is None or not ambiguous or _colour_static(grey, P[piece], flow[piece], dt)):
                         continue
                 pieces.append(piece)
     if rigid_merge and len(pieces) > 1:

@@ -164,9 +164,9 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     if inp.scene is None:  # the real cloud drops points beyond max_depth: so do its pixels
         depth_t = np.where(depth_t <= cfg.max_depth, depth_t, 0.0)
         depth_t1 = np.where(depth_t1 <= cfg.max_depth, depth_t1, 0.0)
+    colour = (inp.rgb[t], inp.rgb[s], inp.camera, depth_t1) if cfg.colour_check else None
     pieces = detection_pieces(X, clusters, flow, cfg, next_points=next_points, dt=dt,
-                              min_speed=cfg.rgbd_min_speed,
-                              images=(inp.rgb[t], inp.rgb[s], inp.camera, depth_t1),
+                              min_speed=cfg.rgbd_min_speed, images=colour,
                               occluders=(depth_t, inp.camera), rigid_merge=True)
     Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
     # each piece's covariance is that of its (main) cluster: a point of it stands for the piece (a piece
