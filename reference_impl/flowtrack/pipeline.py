@@ -91,7 +91,7 @@ import numpy as np
 
 from ._graph import as_labels
 from ._validation import as_array, nonnegative, positive, positive_int
-from .camera import backproject
+from .camera import backproject, project
 from .clustering import cluster_motion, drop_small_clusters
 from .rgbd_flow import rgbd_point_flow
 from .sceneflow import iterative_graph_scene_flow, nearest_neighbor_targets, rigid_flow_per_cluster
@@ -642,21 +642,16 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
     return pieces
 
 
-def _union_find_groups(n: int, pairs) -> list[list[int]]:
-    parent = list(range(n))
+def _groups(n: int, pairs) -> list[list[int]]:
+    """The connected components of ``n`` nodes joined by ``pairs``, each sorted, in order of their
+    smallest member (scipy's ``connected_components``, as for the pieces themselves)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
 
-    def find(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for a, b in pairs:
-        parent[find(b)] = find(a)
-    groups: dict[int, list[int]] = {}
-    for i in range(n):
-        groups.setdefault(find(i), []).append(i)
-    return sorted(groups.values(), key=min)
+    e = np.array(pairs, dtype=np.intp).reshape(-1, 2)
+    _, comp = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)),
+                                   directed=False)
+    return sorted((np.flatnonzero(comp == c).tolist() for c in np.unique(comp)), key=min)
 
 
 def _rigid_rms(P, flow, idx, dt) -> float:
@@ -688,7 +683,7 @@ def _merge_rigid(P, pieces, flow, dt, cfg) -> list[np.ndarray]:
             tol = cfg.rigid_merge_tolerance
             if _one_rigid_motion(P, flow, pieces[a], pieces[b], own[a], own[b], dt, tol):
                 pairs.append((a, b))
-    groups = _union_find_groups(len(pieces), pairs)
+    groups = _groups(len(pieces), pairs)
     return [np.sort(np.concatenate([pieces[i] for i in g])) for g in groups]
 
 
@@ -696,8 +691,7 @@ def _occluded_between(xa, xb, depth, cam, margin: float) -> bool:
     """Whether the image segment between the projections of ``xa`` and ``xb`` is covered by a surface
     nearer than both (after the pieces' own surface at either end)."""
     H, W = depth.shape
-    ua = np.array([cam.fx * xa[0] / xa[2] + cam.cx, cam.fy * xa[1] / xa[2] + cam.cy])
-    ub = np.array([cam.fx * xb[0] / xb[2] + cam.cx, cam.fy * xb[1] / xb[2] + cam.cy])
+    ua, ub = project(np.array([xa, xb]), cam)
     n = int(np.ceil(np.hypot(*(ub - ua))))
     if n < 3:
         return False
@@ -732,7 +726,7 @@ def _merge_occluded(P, pieces, flow, depth, cam, cfg, dt) -> list[np.ndarray]:
             tol = cfg.rigid_merge_tolerance
             if _one_rigid_motion(P, flow, pieces[a], pieces[b], own[a], own[b], dt, tol):
                 pairs.append((a, b))
-    groups = _union_find_groups(n, pairs)
+    groups = _groups(n, pairs)
     return [np.sort(np.concatenate([pieces[i] for i in g])) for g in groups]
 
 
@@ -754,12 +748,10 @@ def _colour_static(grey, X, v, dt) -> bool:
     H, W = g0.shape
 
     def pix(Y):
-        z = Y[:, 2]
-        ok = z > 1e-6
+        ok = Y[:, 2] > 1e-6
         u = np.full(len(Y), -1)
         r = np.full(len(Y), -1)
-        u[ok] = np.round(cam.fx * Y[ok, 0] / z[ok] + cam.cx).astype(int)
-        r[ok] = np.round(cam.fy * Y[ok, 1] / z[ok] + cam.cy).astype(int)
+        u[ok], r[ok] = np.round(project(Y[ok], cam)).astype(int).T
         return u, r, ok & (u >= 0) & (u < W) & (r >= 0) & (r < H)
 
     u0, r0, ok0 = pix(X)
