@@ -198,6 +198,27 @@ def test_restart_after_crash_reexecutes_cells(mode):
         assert [o.value for o in sb.run([Call("bump")], timeout=20)] == [1]
 
 
+def test_a_child_doomed_by_an_earlier_batch_does_not_cost_the_next(mode):
+    # The first batch leaves a thread that ends the process a moment after the batch was answered
+    # (as a student who kills its zygote does). The next batch must not be charged for that death:
+    # it is sent again to a fresh child, once. A batch that kills its own child is not rescued.
+    src = (
+        "import os, threading, time\ncount = 0\n"
+        "def bump():\n    global count\n    count += 1\n    return count\n"
+        "def doom():\n"
+        "    threading.Thread(target=lambda: (time.sleep(0.3), os._exit(0))).start()\n    return 1\n"
+        "def die():\n    os._exit(0)\n"
+    )
+    with Sandbox([("a", src)], limits=FAST) as sb:
+        assert [o.value for o in sb.run([Call("bump"), Call("doom")], timeout=20)] == [1, 1]
+        time.sleep(1.0)  # the child is gone now, and the grader has not been told
+        assert [o.value for o in sb.run([Call("bump")], timeout=20)] == [1]  # a fresh child's count
+        assert sb.run([Call("bump")], timeout=20)[0].value == 2  # and it lives on
+        out = sb.run([Call("die"), Call("bump")], timeout=20)
+        assert [o.ok for o in out] == [False, False] and "exited" in out[0].error
+        assert sb.run([Call("bump")], timeout=20)[0].value == 1
+
+
 def test_timeout_cpu_memory_and_output_limits(mode):
     src = (
         "import numpy as np\n"

@@ -844,6 +844,13 @@ class Sandbox:
             ``ok=False`` with a message for calls that raised, returned something that is not plain
             data, or were not answered because the child crashed, timed out or exceeded a limit. In
             the last case the child is killed and the next ``run`` starts a fresh one.
+
+        Notes
+        -----
+        A child that an earlier batch doomed (it killed its zygote, or left a thread that ends the
+        process) may die between two batches, before it answers the next one. That death belongs to
+        the earlier batch: when a child started before this call dies without answering any call of
+        the batch, and not by timing out, the batch is sent once more to a fresh child.
         """
         calls = list(calls)
         if not all(isinstance(c, Call) for c in calls):
@@ -860,6 +867,20 @@ class Sandbox:
             return outcomes
         if self._child_live and self._cpu_used > self._cpu_ceiling - self.limits.cpu_seconds - 5:
             self._kill()  # its lifetime CPU budget is nearly spent: start afresh
+        for attempt in (0, 1):
+            inherited = self._child_live  # a child that earlier batches used
+            outcomes, gone = self._run_batch(wire, timeout)
+            if gone is None:
+                return outcomes
+            self._kill()
+            if attempt == 0 and inherited and not outcomes and not gone.startswith("timed out"):
+                continue  # it died of an earlier batch: this batch gets a fresh child
+            break
+        return outcomes + [Outcome(ok=False, error=gone) for _ in range(len(calls) - len(outcomes))]
+
+    def _run_batch(self, wire: list[dict], timeout: float) -> tuple[list[Outcome], str | None]:
+        """One batch in the child: the outcomes received and, when the child went away, why."""
+        outcomes: list[Outcome] = []
         try:
             if not self._child_live:
                 self.start(timeout)
@@ -867,7 +888,7 @@ class Sandbox:
             self._send({"op": "calls", "calls": wire, "cpu": self.limits.cpu_seconds}, deadline)
             budget = self.limits.output_bytes
             printed = []
-            for _ in calls:
+            for _ in wire:
                 reply = self._recv(deadline, budget, timeout)
                 budget -= self._budget_used
                 if isinstance(reply, dict) and reply.get("op") == "clean":  # the zygote: its child is gone
@@ -891,10 +912,8 @@ class Sandbox:
             except _ChildGone:
                 self._kill()  # the answers stand; the next batch gets a fresh, empty directory
         except _ChildGone as gone:
-            self._kill()
-            msg = str(gone.args[0])
-            outcomes += [Outcome(ok=False, error=msg) for _ in range(len(calls) - len(outcomes))]
-        return outcomes
+            return outcomes, str(gone.args[0])
+        return outcomes, None
 
     # -- teardown ------------------------------------------------------------------------------------
     def finish(self) -> None:
