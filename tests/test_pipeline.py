@@ -547,3 +547,91 @@ def test_detection_pieces_colour_test_ignores_static_surface_covered_at_t1():
     assert len(fooled) == 1
     covered = (img0, img1, cam, depth1)
     assert detection_pieces(X, labels, flow, cfg, next_points=X, dt=0.1, images=covered) == []
+
+
+# -- occlusion_position_covariances -----------------------------------------------------------------
+
+
+def _plate_scene(fx=100.0, fy=100.0):
+    """A plate 1 m away (columns x in (-0.1, 0.1) m, rows y in (-0.08, 0.08) m) before a wall 2 m away."""
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import cloud_from_depth
+
+    cam = PinholeCamera(fx=fx, fy=fy, cx=39.5, cy=29.5, width=80, height=60)
+    x = (np.arange(80) - 39.5) / fx
+    y = (np.arange(60) - 29.5) / fy
+    on = (np.abs(x)[None, :] < 0.1) & (np.abs(y)[:, None] < 0.08)
+    depth = np.where(on, 1.0, 2.0)
+    P = cloud_from_depth(depth, cam)
+    plate = np.flatnonzero(np.isclose(P[:, 2], 1.0))
+    return cam, depth, P, plate, x, y
+
+
+def test_occlusion_covariance_grows_toward_the_occluder_by_half_the_visible_extent():
+    from flowtrack.pipeline import occlusion_position_covariances as occ
+
+    cam, depth, P, plate, x, y = _plate_scene()
+    r = 1e-4
+    ex = np.ptp(P[plate, 0])  # the plate's extents along x and y (hand-checked: 0.19 and 0.15 m)
+    ey = np.ptp(P[plate, 1])
+    assert ex == pytest.approx(0.19) and ey == pytest.approx(0.15)
+    np.testing.assert_allclose(occ(P, [plate], depth, cam, r)[0], r * np.eye(3), atol=1e-15)  # free
+    for where, axis, extent in [((slice(None), x > 0.1), 0, ex), ((slice(None), x < -0.1), 0, ex),
+                                ((y > 0.08, slice(None)), 1, ey), ((y < -0.08, slice(None)), 1, ey)]:
+        d = depth.copy()
+        d[where] = 0.5  # a nearer surface right, left, below or above the plate
+        R = occ(P, [plate], d, cam, r, scale=0.5)[0]
+        want = r * np.eye(3)
+        want[axis, axis] += (0.5 * extent) ** 2
+        np.testing.assert_allclose(R, want, atol=1e-12)
+        np.testing.assert_allclose(occ(P, [plate], d, cam, r, scale=0.0)[0], r * np.eye(3), atol=1e-15)
+
+
+def test_occlusion_covariance_needs_a_surface_nearer_by_the_margin_and_next_to_the_piece():
+    from flowtrack.pipeline import occlusion_position_covariances as occ
+
+    cam, depth, P, plate, x, _ = _plate_scene()
+    d = depth.copy()
+    d[:, x > 0.1] = 0.99  # 1 cm nearer: the plate's own surface, bent (margin 2 cm)
+    np.testing.assert_allclose(occ(P, [plate], d, cam, 1e-4)[0], 1e-4 * np.eye(3), atol=1e-15)
+    assert occ(P, [plate], d, cam, 1e-4, margin=0.005)[0][0, 0] > 1e-3
+    d = depth.copy()
+    d[:, x > 0.16] = 0.5  # nearer, but 6 px from the plate's edge: the ring (4 px) does not reach it
+    np.testing.assert_allclose(occ(P, [plate], d, cam, 1e-4)[0], 1e-4 * np.eye(3), atol=1e-15)
+    assert occ(P, [plate], d, cam, 1e-4, offset=8)[0][0, 0] > 1e-3
+    d = depth.copy()
+    d[:2, :2] = 0.5  # a far-off nearer corner; NaN and 0 pixels are no surface
+    d[:, x > 0.1] = np.nan
+    np.testing.assert_allclose(occ(P, [plate], d, cam, 1e-4)[0], 1e-4 * np.eye(3), atol=1e-15)
+
+
+def test_occlusion_covariance_direction_follows_the_pixel_aspect_and_a_diagonal_occluder():
+    from flowtrack.pipeline import occlusion_position_covariances as occ
+
+    cam, depth, P, plate, x, y = _plate_scene()
+    d = depth.copy()
+    d[(x[None, :] > 0.08) & (y[:, None] > 0.06)] = 0.5  # the plate's lower right corner hidden
+    R = occ(P, [plate], d, cam, 1e-4)[0] - 1e-4 * np.eye(3)
+    w, V = np.linalg.eigh(R)
+    u = V[:, -1] * np.sign(V[0, -1])
+    assert w[-1] > 1e-3 and w[:2] == pytest.approx([0, 0], abs=1e-12)  # rank one
+    assert u[2] == pytest.approx(0.0, abs=1e-12)  # at constant depth
+    assert 0.2 < u[1] / u[0] < 5  # between the two edges it touches (right and bottom)
+
+
+def test_occlusion_covariance_validates_its_arguments():
+    from flowtrack.pipeline import occlusion_position_covariances as occ
+
+    cam, depth, P, plate, _, _ = _plate_scene()
+    assert occ(P, [], depth, cam, 1e-4).shape == (0, 3, 3)
+    assert occ(P, [np.array([], dtype=int)], depth, cam, 1e-4).shape == (1, 3, 3)
+    with pytest.raises(ValueError, match="depth_t"):
+        occ(P, [plate], depth[0], cam, 1e-4)
+    with pytest.raises(ValueError, match=r"pieces\[1\]"):
+        occ(P, [plate, np.array([len(P)])], depth, cam, 1e-4)
+    with pytest.raises(ValueError, match="min_fraction"):
+        occ(P, [plate], depth, cam, 1e-4, min_fraction=2.0)
+    with pytest.raises(ValueError, match="r"):
+        occ(P, [plate], depth, cam, -1.0)
+    with pytest.raises(ValueError, match="points"):
+        occ(P[:, :2], [plate], depth, cam, 1e-4)

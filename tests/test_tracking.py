@@ -687,6 +687,30 @@ def test_tracking_ablation_keys_and_flow_helping_on_noisy_positions():
     assert res["flow_aided"]["id_switches"] == 0
 
 
+
+def test_tracking_ablation_passes_position_covs_to_the_flow_aided_run_only():
+    from flowtrack.tracking_eval import run_tracker, tracking_ablation
+
+    # one object at rest, its detection 8 cm off in frame 3 (an occluder cut it); per frame its
+    # position covariance: R, except that frame (wide along x)
+    Z = [np.array([[0.08 if t == 3 else 0.0, 0.0, 1.0]]) for t in range(8)]
+    V = [np.zeros((1, 3)) for _ in range(8)]
+    C = [1e-4 * np.eye(3)[None] for _ in range(8)]
+    Rp = [None if t != 3 else np.diag([0.05**2, 1e-4, 1e-4])[None] for t in range(8)]
+    gt = [{0: np.array([0.0, 0.0, 1.0])} for _ in range(13)]
+    opts = dict(q=0.01, r=1e-4, ahead=5, max_dist=0.05, tracker_options={"min_hits": 2})
+    with_r = tracking_ablation(Z, V, C, gt, 0.1, position_covs=Rp, **opts)
+    without = tracking_ablation(Z, V, C, gt, 0.1, **opts)
+    assert with_r["position_only"] == without["position_only"]  # position-only keeps r
+    # without it the frame-3 detection starts a tentative track while the object's track coasts: a
+    # miss; with it the object's track takes the detection (and no run switches identities)
+    assert with_r["flow_aided"]["mota"] > without["flow_aided"]["mota"], (with_r, without)
+    assert with_r["flow_aided"]["id_switches"] == without["flow_aided"]["id_switches"] == 0
+    with pytest.raises(ValueError, match="position_covs"):
+        run_tracker(MultiObjectTracker(0.1, 0.01, 1e-4, dim=3, velocity_update=True), Z, V, C,
+                    position_covs=Rp[:3])
+
+
 # ----------------------------------------------------------------------------- sequential track score (SPRT)
 
 
@@ -992,3 +1016,62 @@ def test_birth_exclusion_keeps_a_second_piece_from_becoming_a_track():
     np.testing.assert_allclose(pos[1], [0.09, 0.30], atol=0.01)
     with pytest.raises(ValueError, match="birth_exclusion_radius"):
         MultiObjectTracker(dt=0.1, q=0.01, r=1e-4, birth_exclusion_radius=-1.0)
+
+
+def test_position_covs_match_filterpy_with_the_stacked_and_the_position_measurement():
+    # a detection's own position covariance replaces R in its update, with and without a velocity
+    from filterpy.kalman import KalmanFilter as FilterPyKF
+
+    dt, q, r = 0.1, 0.5, 1e-3
+    Rv = np.array([[0.004, 0.001], [0.001, 0.002]])
+    Rp = np.array([[0.02, 0.005], [0.005, 0.003]])
+    z0, v0 = np.array([1.0, 2.0]), np.array([0.3, -0.1])
+    z1, v1 = np.array([1.04, 1.99]), np.array([0.35, -0.12])
+    F, _, Q, R = constant_velocity_model(dt, q, r, 2)
+    for with_v in (True, False):
+        trk = MultiObjectTracker(dt, q, r, dim=2, min_hits=1, velocity_update=True)
+        trk.step(z0[None], v0[None], Rv[None])
+        v = v1 if with_v else np.full(2, np.nan)
+        out = trk.step(z1[None], v[None], Rv[None], position_covs=Rp[None])
+        ref = FilterPyKF(dim_x=4, dim_z=4 if with_v else 2)
+        ref.x = np.r_[z0, v0]
+        ref.P = np.zeros((4, 4))
+        ref.P[:2, :2], ref.P[2:, 2:] = R, Rv  # born with R (the birth detection had no position_covs)
+        ref.F, ref.Q = F, Q
+        ref.H = np.eye(4)[: 4 if with_v else 2]
+        ref.R = np.zeros((4, 4)) if with_v else Rp
+        if with_v:
+            ref.R[:2, :2], ref.R[2:, 2:] = Rp, Rv
+        ref.predict()
+        ref.update(np.r_[z1, v1] if with_v else z1)
+        np.testing.assert_allclose(out[0].x, ref.x, atol=1e-12)
+        np.testing.assert_allclose(out[0].P, ref.P, atol=1e-12)
+
+
+def test_position_covs_widen_the_gate_of_their_detection_only():
+    # a confirmed track at rest; the next detection 8 cm off (far outside the gate of 1 cm noise)
+    # starts a new track, unless its position covariance says it may be that far off (an occluded
+    # object) along the offset
+    def run(Rp):
+        trk = MultiObjectTracker(0.1, 0.01, 1e-4, dim=2, min_hits=2, velocity_update=True)
+        for _ in range(3):
+            trk.step(np.zeros((1, 2)), np.zeros((1, 2)), 1e-4 * np.eye(2)[None])
+        trk.step(np.array([[0.08, 0.0]]), np.zeros((1, 2)), 1e-4 * np.eye(2)[None], position_covs=Rp)
+        return sorted((t.id, t.status, t.misses) for t in trk.tracks)
+
+    assert run(None) == [(0, "coasting", 1), (1, "tentative", 0)]
+    assert run(1e-4 * np.eye(2)[None]) == run(None)  # R itself: the same as no position_covs
+    assert run(np.diag([0.05**2, 1e-4])[None]) == [(0, "confirmed", 0)]
+    assert run(np.diag([1e-4, 0.05**2])[None]) == run(None)  # widened across the offset: no help
+
+
+def test_position_covs_are_validated():
+    trk = MultiObjectTracker(0.1, 0.01, 1e-4, dim=2, velocity_update=True)
+    with pytest.raises(ValueError, match="position_covs"):
+        trk.step(np.zeros((2, 2)), position_covs=np.eye(2)[None])
+    with pytest.raises(ValueError, match="position_covs"):
+        trk.step(np.zeros((1, 2)), position_covs=np.full((1, 2, 2), np.nan))
+    with pytest.raises(ValueError, match="position_covs"):  # not positive definite
+        trk.step(np.zeros((1, 2)), position_covs=-np.eye(2)[None])
+    with pytest.raises(ValueError, match="position_covs needs"):
+        MultiObjectTracker(0.1, 0.01, 1e-4, dim=2).step(np.zeros((1, 2)), position_covs=np.eye(2)[None])

@@ -563,7 +563,7 @@ class MotionBatchFilter:
         d = self.dim
         return self.x[:, :d].copy(), self.P[:, :d, :d] + self.R
 
-    def joint_innovation(self, Z, V=None, Rv=None):
+    def joint_innovation(self, Z, V=None, Rv=None, Rp=None):
         r"""Innovations and their covariances of every (track, detection) pair.
 
         Returns ``nu (M, N, m)``, ``S (M, N, m, m)`` and ``m (N,)``: for a detection with a velocity
@@ -581,7 +581,7 @@ class MotionBatchFilter:
         PHt = self.P[:, :, : 2 * d]  # P Hv^T (M, n, 2d)
         Sfull = PHt[:, : 2 * d, :]  # Hv P Hv^T (M, 2d, 2d)
         S[:] = Sfull[:, None]
-        S[:, :, :d, :d] += self.R
+        S[:, :, :d, :d] += self.R if Rp is None else Rp[None]
         if has_v.any():
             nu[:, has_v, d:] = V[None, has_v] - self.x[:, None, d : 2 * d]
             S[:, has_v, d:, d:] += Rv[has_v][None]
@@ -597,7 +597,7 @@ class MotionBatchFilter:
         mask = np.ones(M, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
         self.update_joint(Z, None, None, mask)
 
-    def update_joint(self, Z, V=None, Rv=None, mask=None) -> None:
+    def update_joint(self, Z, V=None, Rv=None, mask=None, Rp=None) -> None:
         """Update track i (``mask[i]``) with ``Z[i]`` and, where ``V[i]`` and ``Rv[i]`` are finite, ``V[i]``.
 
         ``Z`` (M, d); ``V`` (M, d) or None; ``Rv`` (M, d, d) or None (rows of NaN = no velocity).
@@ -611,12 +611,12 @@ class MotionBatchFilter:
         pos = mask & ~has_v
         if pos.any():
             g = np.flatnonzero(pos)
-            Rg = np.broadcast_to(self.R, (len(g), d, d))
+            Rg = np.broadcast_to(self.R, (len(g), d, d)) if Rp is None else Rp[g]
             self.x[g], self.P[g] = _joseph(self.x[g], self.P[g], self.H, Rg, Z[g])
         if has_v.any():
             g = np.flatnonzero(has_v)
             Rg = np.zeros((len(g), 2 * d, 2 * d))
-            Rg[:, :d, :d] = self.R
+            Rg[:, :d, :d] = self.R if Rp is None else Rp[g]
             Rg[:, d:, d:] = Rv[g]
             zg = np.concatenate([Z[g], V[g]], axis=1)
             self.x[g], self.P[g] = _joseph(self.x[g], self.P[g], self.Hv, Rg, zg)

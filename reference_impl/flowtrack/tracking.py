@@ -40,8 +40,10 @@ default): ``velocity_update=True`` uses each detection's velocity (with its cova
 ``p_detect`` and ``clutter_density`` associate by the negative log-likelihood ratio against clutter
 (:func:`flowtrack.association.nllr_cost`, the course's one association objective); and
 ``motion_model="turn_rate"`` predicts with constant speed and yaw rate (:mod:`flowtrack.motion`, an
-EKF), so a turning object is extrapolated along its arc. :meth:`MultiObjectTracker.history` gives the
-per-frame tracks that :func:`flowtrack.tracking_io.write_tracks_csv` exports.
+EKF), so a turning object is extrapolated along its arc; ``step(..., position_covs=)`` gives a
+detection its own position covariance (an occluded object's visible centroid is off its centre).
+:meth:`MultiObjectTracker.history` gives the per-frame tracks that
+:func:`flowtrack.tracking_io.write_tracks_csv` exports.
 
 The parts have tiny interfaces, in the spirit of Stone Soup, so a lesson can swap one:
 
@@ -564,7 +566,7 @@ class MultiObjectTracker:
             self.kf.x, self.kf.P = x, P
         return taken
 
-    def step(self, detections, velocities=None, velocity_covs=None) -> list[Track]:
+    def step(self, detections, velocities=None, velocity_covs=None, position_covs=None) -> list[Track]:
         """Process one frame of detections; return the reported (confirmed or coasting) tracks.
 
         Parameters
@@ -578,6 +580,13 @@ class MultiObjectTracker:
         velocity_covs : array_like, shape (N, dim, dim), optional
             Covariance of each velocity (e.g. :func:`flowtrack.motion.detection_velocity_covariances`),
             used with ``velocity_update=True``; a NaN row falls back to ``velocity_cov``.
+        position_covs : array_like, shape (N, dim, dim), optional
+            Each detection's own position covariance (symmetric positive definite), in place of R
+            in its gate, association cost and update (e.g.
+            :func:`flowtrack.pipeline.occlusion_position_covariances`: a detection cut by an
+            occluder is off the object's centroid along the occluder). Needs the flow-aware filter
+            (``velocity_update=True``, ``p_detect`` or the turn-rate model). Tracks born from these
+            detections start with R, as any.
 
         Returns
         -------
@@ -591,6 +600,14 @@ class MultiObjectTracker:
         """
         Z, V = self._check_detections(detections, velocities)
         Rv = None
+        Rp = None
+        if position_covs is not None:
+            if self._flow is None:
+                raise ValueError("position_covs needs MultiObjectTracker(..., velocity_update=True)")
+            from .motion import check_velocity_covs
+
+            Rp = as_array(position_covs, "position_covs", (len(Z), self.dim, self.dim))
+            check_velocity_covs(Rp, len(Z), self.dim, "position_covs")  # symmetric positive definite
         if self._flow is not None:
             Rv = self._flow.velocity_covariances(Z, V, velocity_covs)
         elif velocity_covs is not None:
@@ -610,7 +627,7 @@ class MultiObjectTracker:
             self.updater.update(kf, Z, matches)
         else:
             (matches, unmatched_tracks, unmatched_dets), (z_pred, S, Zj, has_v) = \
-                self._flow.predict_associate_update(Z, V, Rv)
+                self._flow.predict_associate_update(Z, V, Rv, Rp)
         # 4. bookkeeping: hits, misses, score, confirmation
         matched = matches[:, 0]
         self._hits[matched] += 1
@@ -866,7 +883,7 @@ class _FlowOptions:
         Rv[np.isnan(V).any(axis=1)] = np.nan
         return Rv
 
-    def predict_associate_update(self, Z, V, Rv):
+    def predict_associate_update(self, Z, V, Rv, Rp=None):
         from .association import assign, masked_mahalanobis, nllr_cost
 
         kf = self.trk.kf
@@ -877,7 +894,7 @@ class _FlowOptions:
         if use_v:
             # joint innovation covariances per pair; a detection without a velocity is scored on its
             # position alone (its velocity components are NaN, which masked_mahalanobis leaves out)
-            _, S, m = kf.joint_innovation(Z, V, Rv)
+            _, S, m = kf.joint_innovation(Z, V, Rv, Rp)
             has_v = m == 2 * d
             Zj = np.concatenate([Z, np.where(has_v[:, None], V, np.nan)], axis=1)
             z_pred = kf.x[:, : 2 * d].copy()  # the prior (the update below changes kf.x)
@@ -906,7 +923,11 @@ class _FlowOptions:
                 Rvm = np.full((M, d, d), np.nan)
                 Vm[matches[:, 0]] = V[matches[:, 1]]
                 Rvm[matches[:, 0]] = Rv[matches[:, 1]]
-                kf.update_joint(Zm, Vm, Rvm, mask)
+                Rpm = None
+                if Rp is not None:
+                    Rpm = np.broadcast_to(kf.R, (M, d, d)).copy()
+                    Rpm[matches[:, 0]] = Rp[matches[:, 1]]
+                kf.update_joint(Zm, Vm, Rvm, mask, Rpm)
             else:
                 kf.update_joint(Zm, None, None, mask)
         return (matches, ut, ud), (z_pred, S, Zj, has_v)

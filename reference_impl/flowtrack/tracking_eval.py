@@ -41,7 +41,8 @@ __all__ = ["run_tracker", "score_run", "tracking_ablation"]
 
 
 def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: Sequence | None = None,
-                velocity_covs: Sequence | None = None, *, ahead: int = 5) -> dict:
+                velocity_covs: Sequence | None = None, *, ahead: int = 5,
+                position_covs: Sequence | None = None) -> dict:
     """Step ``tracker`` through the frames; record reported positions and ``ahead``-frame predictions.
 
     Parameters
@@ -51,6 +52,9 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
     velocities : sequence of array_like, shape (N_t, dim), optional
     velocity_covs : sequence of array_like, shape (N_t, dim, dim), optional
     ahead : int, >= 1
+    position_covs : sequence of (array_like, shape (N_t, dim, dim), or None), optional
+        Each detection's position covariance (``step(..., position_covs=)``; a None entry: the
+        tracker's R for that frame).
 
     Returns
     -------
@@ -62,7 +66,8 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
     """
     ahead = positive_int(ahead, "ahead")
     T = len(detections)
-    for name, seq in (("velocities", velocities), ("velocity_covs", velocity_covs)):
+    for name, seq in (("velocities", velocities), ("velocity_covs", velocity_covs),
+                      ("position_covs", position_covs)):
         if seq is not None and len(seq) != T:
             raise ValueError(f"{name} must have one entry per frame ({T}), got {len(seq)}")
     hyp, pred, tracks = [], [], []
@@ -70,7 +75,10 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
     for t in range(T):
         V = None if velocities is None else velocities[t]
         C = None if velocity_covs is None else velocity_covs[t]
-        reported = tracker.step(detections[t], V, C) if C is not None else tracker.step(detections[t], V)
+        Rp = None if position_covs is None else position_covs[t]
+        kw = {} if Rp is None else {"position_covs": Rp}
+        reported = (tracker.step(detections[t], V, C, **kw) if C is not None
+                    else tracker.step(detections[t], V, **kw))
         live = tracker.tracks
         ahead_of = tracker.predict_ahead(ahead)
         now = [tr for tr in reported if tr.misses == 0]
@@ -120,7 +128,7 @@ def score_run(run: dict, truth: Sequence[dict], max_dist: float) -> dict:
 
 
 def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r, dim=3, ahead=5,
-                      max_dist=0.1, tracker_options=None, flow_options=None) -> dict:
+                      max_dist=0.1, tracker_options=None, flow_options=None, position_covs=None) -> dict:
     r"""Position-only vs flow-aided tracking on the same detections.
 
     Parameters
@@ -146,6 +154,10 @@ def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r,
     flow_options : dict, optional
         Extra arguments of the flow-aided run only (e.g. ``p_detect``, ``clutter_density``,
         ``motion_model``, ``velocity_cov``).
+    position_covs : sequence of (array_like, shape (N_t, dim, dim), or None), optional
+        The detections' position covariances (e.g.
+        :func:`flowtrack.pipeline.occlusion_position_covariances`), used by the flow-aided run only
+        (its filter takes per-detection covariances); position-only tracking keeps ``r``.
 
     Returns
     -------
@@ -157,6 +169,6 @@ def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r,
     runs = {
         "position_only": run_tracker(MultiObjectTracker(dt, q, r, dim, **base), detections, ahead=ahead),
         "flow_aided": run_tracker(MultiObjectTracker(dt, q, r, dim, **base, **flow), detections, velocities,
-                                  velocity_covs, ahead=ahead),
+                                  velocity_covs, ahead=ahead, position_covs=position_covs),
     }
     return {k: score_run(v, truth, max_dist) for k, v in runs.items()}

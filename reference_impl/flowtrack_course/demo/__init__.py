@@ -27,7 +27,10 @@ Per frame pair :math:`(t, t+1)`:
    by the flow, :func:`flowtrack.pipeline.visible_centroid_velocities`), each with a covariance from
    its cluster's flow residuals (:func:`flowtrack.motion.detection_velocity_covariances`) widened by
    the gap between that velocity and the mean flow, the visible-extent change
-   (``velocity_update=True``; :func:`flowtrack_course.demo.run.detection_measurements`).
+   (``velocity_update=True``; :func:`flowtrack_course.demo.run.detection_measurements`), and a
+   position covariance widened toward a nearer surface that cuts the piece
+   (:func:`flowtrack.pipeline.occlusion_position_covariances`: an occluded object's visible
+   centroid is off its own).
 
 With ground truth the same detections are also tracked with positions only, and
 ``metrics.json["tracking_ablation"]`` compares the two (MOTA, IDF1, ID switches, prediction error).

@@ -18,6 +18,7 @@ from flowtrack.pipeline import (
     RGBD_METHOD,
     detection_pieces,
     flow_partners,
+    occlusion_position_covariances,
     open3d_threads,
     rgbd_cloud_flow,
     scene_flow_and_clusters,
@@ -138,15 +139,19 @@ def assign_tracks(tracks: dict[int, np.ndarray], truth: dict[int, np.ndarray], g
 
 def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig,
                            partner: int | None = None):
-    """Detections of frame ``t`` with their velocity measurements: ``(Z (K, 3), U (K, 3), C (K, 3, 3))``.
+    """Detections of frame ``t`` with their velocity measurements: ``(Z (K, 3), U (K, 3), C (K, 3, 3),
+    R (K, 3, 3) or None)``.
 
     ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
     of each piece's visible-surface centroid and ``C`` its covariance, the cluster's flow-residual
     covariance (:func:`flowtrack.motion.detection_velocity_covariances`, ``min_std =
     velocity_min_std``) widened by the visible-extent change
     (:func:`flowtrack.pipeline.visible_centroid_velocities`, ``radius = centroid_radius``, at least the
-    voxel size of a real cloud; ``inflation = extent_change_inflation``). The benchmark
-    (``benchmarks/bench_tracking.py``) builds its detections with this function too.
+    voxel size of a real cloud; ``inflation = extent_change_inflation``). ``R`` is each detection's
+    position covariance, ``track_r`` widened toward a nearer surface that cuts the piece
+    (:func:`flowtrack.pipeline.occlusion_position_covariances`, ``scale = occlusion_position_scale``;
+    None when that is None). The benchmark (``benchmarks/bench_tracking.py``) builds its detections
+    with this function too.
 
     ``flow`` and ``next_points`` belong to the pair (``t``, ``partner``) (default ``t + 1``; see
     :func:`flowtrack.pipeline.flow_partners`): ``flow`` is the velocity toward frame ``partner``
@@ -180,7 +185,11 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     radius = cfg.centroid_radius if inp.scene is not None else max(cfg.centroid_radius, cfg.voxel)
     U, C = visible_centroid_velocities(X, pieces, flow, depth_t, depth_t1, inp.camera, dt, radius=radius,
                                        velocity_covs=C, inflation=cfg.extent_change_inflation)
-    return Z, (U if s > t else -U), C
+    Rz = None
+    if cfg.occlusion_position_scale is not None:
+        Rz = occlusion_position_covariances(X, pieces, depth_t, inp.camera, cfg.track_r,
+                                            scale=cfg.occlusion_position_scale, margin=cfg.occlusion_margin)
+    return Z, (U if s > t else -U), C, Rz
 
 
 @open3d_threads(1)
@@ -301,7 +310,7 @@ def run_demo(
     min_pixels = int(np.ceil(cfg.min_detection_points * max(1.0, n_valid / cfg.max_points)))
     pairs: list[FlowPair] = []
     snapshots, hyp, gt_frames, n_detections = [], [], [], []
-    Zs, Vs, Cs = [], [], []  # per-frame detections, their velocities and velocity covariances
+    Zs, Vs, Cs, Rs = [], [], [], []  # per-frame detections, velocities, their covariances
     # the synthetic scene is rendered past the processed frames: every frame pairs with the next one.
     # Real input pairs every frame with one at least flow_interval later (the last ones backwards),
     # so that the last frame is tracked too and the thresholds mean the same at 30 Hz as at 10 Hz.
@@ -331,14 +340,15 @@ def run_demo(
         pair.flows, pair.clusters, pair.seconds = scene_flow_and_clusters(X, nxt[0], pair_dt, cfg, flow=rgbd)
         pair.seconds[RGBD_METHOD] = t_rgbd
         t0 = time.perf_counter()
-        Z, V, C = detection_measurements(inp, t, X, pair.clusters, rgbd, nxt[0], cfg, partner=s_)
+        Z, V, C, Rz = detection_measurements(inp, t, X, pair.clusters, rgbd, nxt[0], cfg, partner=s_)
         pair.seconds["detection"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        reported = tracker.step(Z, V, C)
+        reported = tracker.step(Z, V, C, position_covs=Rz)
         pair.seconds["tracker step"] = time.perf_counter() - t0
         Zs.append(Z)
         Vs.append(V)
         Cs.append(C)
+        Rs.append(Rz)
         n_detections.append(len(Z))
         snapshots.append([(tr.id, tr.position.copy(), tr.P[:3, :3].copy(), tr.status) for tr in reported])
         hyp.append({tr.id: tr.position.copy() for tr in reported if tr.misses == 0})
@@ -420,7 +430,8 @@ def run_demo(
         summary["tracking"].update(max_dist_m=cfg.mot_max_dist, min_visible_pixels=min_pixels,
                                    ground_truth="centroid of each object's visible noiseless surface")
         summary["tracking_ablation"] = tracking_ablation_section(scene, Zs, Vs, Cs, dt, cfg, min_pixels,
-                                                                 predict_ahead, tracker_options)
+                                                                 predict_ahead, tracker_options,
+                                                                 position_covs=Rs)
     else:
         summary["scene_flow"] = None
         summary["tracking"] = None
@@ -476,19 +487,21 @@ def run_demo(
 
 
 def tracking_ablation_section(scene, detections, velocities, velocity_covs, dt, cfg, min_pixels: int,
-                              ahead: int, tracker_options: dict) -> dict:
+                              ahead: int, tracker_options: dict, position_covs=None) -> dict:
     """Position-only vs flow-aided tracking on the demo's own detections
     (:func:`flowtrack.tracking_eval.tracking_ablation`).
 
     The truth is the centroid of each object's visible surface in every rendered frame (the frames
     past the last processed one score the ``ahead``-frame predictions); the flow-aided run is the
-    demo's tracker (position and RGB-D velocity with the per-detection covariances).
+    demo's tracker (position and RGB-D velocity with the per-detection covariances, and the
+    detections' position covariances ``position_covs`` when given).
     """
     from flowtrack.tracking_eval import tracking_ablation
 
     truth = [surface_centroids(f, min_pixels) for f in scene.frames]
     res = tracking_ablation(detections, velocities, velocity_covs, truth, dt, q=cfg.track_q, r=cfg.track_r,
-                            ahead=ahead, max_dist=cfg.mot_max_dist, tracker_options=tracker_options)
+                            ahead=ahead, max_dist=cfg.mot_max_dist, tracker_options=tracker_options,
+                            position_covs=position_covs)
     return {k: {m: json_number(v) for m, v in r.items()} for k, r in res.items()}
 
 
