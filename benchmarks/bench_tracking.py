@@ -270,7 +270,8 @@ def scene_detections(scenario, seed, n_frames=FLOW_FRAMES, image_size=FLOW_IMAGE
     piece's visible-surface centroid, covariance from the cluster's flow residuals widened by the
     visible-extent change).
 
-    Returns a dict: ``Z``, ``V``, ``C`` (per processed frame), the references ``GV`` (the true mean
+    Returns a dict: ``Z``, ``V``, ``C``, ``R`` (the detections' position covariances, or None; per
+    processed frame), the references ``GV`` (the true mean
     material flow of the visible object nearest each detection) and ``GU`` (the true velocity of that
     object's visible-surface centroid, ``(truth[t+1] - truth[t]) / dt``; NaN where either is missing),
     ``truth`` (per rendered frame ``{object id: centroid of the visible noiseless surface}`` for objects
@@ -296,13 +297,14 @@ def scene_detections(scenario, seed, n_frames=FLOW_FRAMES, image_size=FLOW_IMAGE
     min_pixels = int(np.ceil(cfg.min_detection_points * max(1.0, n_valid / cfg.max_points)))
     truth = [surface_centroids(f, min_pixels) for f in scene.frames]
     rng = np.random.default_rng(seed)  # the demo's subsampling generator
-    Zs, Vs, Cs, GVs, GUs = [], [], [], [], []
+    Zs, Vs, Cs, Rs, GVs, GUs = [], [], [], [], [], []
     nxt = frame_cloud(inp, 0, cfg, rng)
     for t in range(inp.n - 1):
         (X, _, _), nxt = nxt, frame_cloud(inp, t + 1, cfg, rng)
         rgbd = rgbd_cloud_flow(inp.rgb[t], inp.depth[t], inp.rgb[t + 1], inp.depth[t + 1], cam, dt, X)
         _, clusters, _ = scene_flow_and_clusters(X, nxt[0], dt, cfg, flow=rgbd)
-        Z, V, C = detection_measurements(inp, t, X, clusters, rgbd, nxt[0], cfg)
+        Z, V, C, Rz = detection_measurements(inp, t, X, clusters, rgbd, nxt[0], cfg)
+        Rs.append(Rz)
         Zs.append(Z)
         Vs.append(V)
         Cs.append(C)
@@ -321,7 +323,8 @@ def scene_detections(scenario, seed, n_frames=FLOW_FRAMES, image_size=FLOW_IMAGE
         GVs.append(GV)
         GUs.append(GU)
     up = np.linalg.inv(scene.camera_pose)[:3, :3] @ np.array([0.0, 0.0, 1.0])
-    return {"Z": Zs, "V": Vs, "C": Cs, "GV": GVs, "GU": GUs, "truth": truth, "dt": dt, "up": up, "cfg": cfg}
+    return {"Z": Zs, "V": Vs, "C": Cs, "R": Rs, "GV": GVs, "GU": GUs, "truth": truth, "dt": dt, "up": up,
+            "cfg": cfg}
 
 
 def _ablation(d, flow_options=None, truth=None, velocities=None, max_misses=None, cfg=None):
@@ -337,7 +340,8 @@ def _ablation(d, flow_options=None, truth=None, velocities=None, max_misses=None
                          "max_misses": cfg.max_misses if max_misses is None else max_misses,
                          "reacquire_radius": cfg.track_reacquire_radius,
                          "birth_exclusion_radius": cfg.track_birth_exclusion_radius,
-                         "confirmer": track_confirmer(cfg)})
+                         "confirmer": track_confirmer(cfg)},
+        position_covs=d.get("R"))
 
 
 def flow_section(args) -> bool:
@@ -401,8 +405,13 @@ def flow_section(args) -> bool:
         f"{DemoConfig().extent_change_inflation:g} (`flowtrack.pipeline.visible_centroid_velocities`, "
         "via `flowtrack_course.demo.run.detection_measurements`), tracked by `MultiObjectTracker` "
         "position-only (no velocities) and flow-aided "
-        "(`velocity_update=True` with those covariances) "
-        "(`flowtrack.tracking_eval.tracking_ablation`), both confirming tracks as the demo does "
+        "(`velocity_update=True` with those covariances, and each detection's position covariance widened "
+        "toward a nearer surface that cuts it, `flowtrack.pipeline.occlusion_position_covariances` with "
+        f"s = {DemoConfig().occlusion_position_scale:g}; position-only tracking keeps R) "
+        "(`flowtrack.tracking_eval.tracking_ablation`), both with the demo's colour test "
+        f"(`colour_check={DemoConfig().colour_check}`) and birth exclusion "
+        f"(`track_birth_exclusion_radius={DemoConfig().track_birth_exclusion_radius:g}` m), both confirming "
+        "tracks as the demo does "
         f"(`confirmation={DemoConfig().confirmation!r}`: the sequential track score, see the confirmation "
         "section; without velocities a track gathers its score more slowly, so position-only tracks are "
         "confirmed about one frame later than with `min_hits=2`, which lowers their MOTA by about 0.05 and "
@@ -525,10 +534,12 @@ def confirm_section(args) -> bool:
         "they do not move: the clutter a motion segmentation lets through is static surface, its velocity"
         " N(0, Σ_c + R_v), which the score now uses as the velocity clutter density. With that density α "
         "= 1e-3 still left one spurious track (Kinect-like crossing 0); α = 1e-4 removes all. The values "
-        "were picked on these scenes (crossing 0 and mixed 0 with Kinect-like depth), not held out. The "
-        "ID switches left in the Kinect-like rows are not clutter tracks (hits and score have the same "
-        "ones). Position-only tracking has no velocity evidence, so its tracks need a third detection and"
-        " one clutter track is left (crossing 1).",
+        "were picked on these scenes (crossing 0 and mixed 0 with Kinect-like depth), not held out. "
+        "Position-only tracking has no velocity evidence, so its tracks need a third detection. Before "
+        "the colour test, the occlusion position covariances and the 5 cm birth exclusion were on in the "
+        "demo, the Kinect-like crossing rows had ID switches (2 and 1 on seeds 0 and 1, the same with hits "
+        "and score: not clutter tracks) and position-only "
+        "tracking kept one clutter track (crossing 1).",
         "",
         "The issue's user's path, `flowtrack demo --input` on a TUM-layout sequence (measured when this "
         "was written, by a script outside this benchmark): mixed and crossing seed 0 rendered with "
