@@ -1048,6 +1048,40 @@ def test_position_covs_match_filterpy_with_the_stacked_and_the_position_measurem
         np.testing.assert_allclose(out[0].P, ref.P, atol=1e-12)
 
 
+def test_position_covs_in_the_nllr_and_turn_rate_filters_without_velocity_updates():
+    # p_detect (NLLR association) or the turn-rate model run the flow-aware filter without velocity
+    # measurements: the detection's own covariance is used there too (a position update, checked
+    # against filterpy), and it decides the association as in the velocity filter
+    from filterpy.kalman import KalmanFilter as FilterPyKF
+
+    dt, q, r = 0.1, 0.5, 1e-3
+    Rp = np.array([[0.02, 0.005], [0.005, 0.003]])
+    z0, z1 = np.array([1.0, 2.0]), np.array([1.04, 1.99])
+    trk = MultiObjectTracker(dt, q, r, dim=2, min_hits=1, p_detect=0.9, clutter_density=1.0,
+                             velocity_var=0.25)
+    trk.step(z0[None])
+    out = trk.step(z1[None], position_covs=Rp[None])
+    F, H, Q, _ = constant_velocity_model(dt, q, r, 2)
+    ref = FilterPyKF(dim_x=4, dim_z=2)
+    ref.x = np.r_[z0, 0.0, 0.0]
+    ref.P = np.diag([r, r, 0.25, 0.25])
+    ref.F, ref.Q, ref.H, ref.R = F, Q, H, Rp
+    ref.predict()
+    ref.update(z1)
+    np.testing.assert_allclose(out[0].x, ref.x, atol=1e-12)
+    np.testing.assert_allclose(out[0].P, ref.P, atol=1e-12)
+
+    def ids(model, Rp):
+        trk = MultiObjectTracker(0.1, 0.01, 1e-4, dim=2, min_hits=2, motion_model=model, velocity_var=1e-4)
+        for _ in range(3):
+            trk.step(np.zeros((1, 2)))
+        trk.step(np.array([[0.08, 0.0]]), position_covs=Rp)
+        return sorted(t.id for t in trk.tracks)
+
+    assert ids("turn_rate", None) == [0, 1]
+    assert ids("turn_rate", np.diag([0.05**2, 1e-4])[None]) == [0]
+
+
 def test_position_covs_widen_the_gate_of_their_detection_only():
     # a confirmed track at rest; the next detection 8 cm off (far outside the gate of 1 cm noise)
     # starts a new track, unless its position covariance says it may be that far off (an occluded

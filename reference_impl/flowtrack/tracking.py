@@ -603,7 +603,8 @@ class MultiObjectTracker:
         Rp = None
         if position_covs is not None:
             if self._flow is None:
-                raise ValueError("position_covs needs MultiObjectTracker(..., velocity_update=True)")
+                raise ValueError("position_covs needs the flow-aware filter: MultiObjectTracker(..., "
+                                 "velocity_update=True), p_detect or motion_model='turn_rate'")
             from .motion import check_velocity_covs
 
             Rp = as_array(position_covs, "position_covs", (len(Z), self.dim, self.dim))
@@ -902,6 +903,8 @@ class _FlowOptions:
             has_v = np.zeros(N, dtype=bool)
             Zj = Z
             z_pred, S = kf.predicted_measurements()
+            if Rp is not None:  # per pair: the track's P with the detection's own covariance
+                S = (S - kf.R)[:, None] + Rp[None]
         if M == 0 or N == 0:
             matches, ut, ud = assign(np.zeros((M, N)))
         elif self.nllr:
@@ -918,18 +921,18 @@ class _FlowOptions:
             Zm[matches[:, 0]] = Z[matches[:, 1]]
             mask = np.zeros(M, dtype=bool)
             mask[matches[:, 0]] = True
+            Rpm = None
+            if Rp is not None:
+                Rpm = np.broadcast_to(kf.R, (M, d, d)).copy()
+                Rpm[matches[:, 0]] = Rp[matches[:, 1]]
             if use_v:
                 Vm = np.full((M, d), np.nan)
                 Rvm = np.full((M, d, d), np.nan)
                 Vm[matches[:, 0]] = V[matches[:, 1]]
                 Rvm[matches[:, 0]] = Rv[matches[:, 1]]
-                Rpm = None
-                if Rp is not None:
-                    Rpm = np.broadcast_to(kf.R, (M, d, d)).copy()
-                    Rpm[matches[:, 0]] = Rp[matches[:, 1]]
                 kf.update_joint(Zm, Vm, Rvm, mask, Rpm)
             else:
-                kf.update_joint(Zm, None, None, mask)
+                kf.update_joint(Zm, None, None, mask, Rpm)
         return (matches, ut, ud), (z_pred, S, Zj, has_v)
 
     def birth_states(self, x0, P0, Rv):
