@@ -552,14 +552,14 @@ def test_detection_pieces_colour_test_ignores_static_surface_covered_at_t1():
 # -- occlusion_position_covariances -----------------------------------------------------------------
 
 
-def _plate_scene(fx=100.0, fy=100.0):
+def _plate_scene():
     """A plate 1 m away (columns x in (-0.1, 0.1) m, rows y in (-0.08, 0.08) m) before a wall 2 m away."""
     from flowtrack.camera import PinholeCamera
     from flowtrack.pipeline import cloud_from_depth
 
-    cam = PinholeCamera(fx=fx, fy=fy, cx=39.5, cy=29.5, width=80, height=60)
-    x = (np.arange(80) - 39.5) / fx
-    y = (np.arange(60) - 29.5) / fy
+    cam = PinholeCamera(fx=100.0, fy=100.0, cx=39.5, cy=29.5, width=80, height=60)
+    x = (np.arange(80) - 39.5) / cam.fx
+    y = (np.arange(60) - 29.5) / cam.fy
     on = (np.abs(x)[None, :] < 0.1) & (np.abs(y)[:, None] < 0.08)
     depth = np.where(on, 1.0, 2.0)
     P = cloud_from_depth(depth, cam)
@@ -605,7 +605,7 @@ def test_occlusion_covariance_needs_a_surface_nearer_by_the_margin_and_next_to_t
     np.testing.assert_allclose(occ(P, [plate], d, cam, 1e-4)[0], 1e-4 * np.eye(3), atol=1e-15)
 
 
-def test_occlusion_covariance_direction_follows_the_pixel_aspect_and_a_diagonal_occluder():
+def test_occlusion_covariance_of_a_diagonal_occluder_is_rank_one_at_constant_depth():
     from flowtrack.pipeline import occlusion_position_covariances as occ
 
     cam, depth, P, plate, x, y = _plate_scene()
@@ -631,7 +631,7 @@ def test_occlusion_covariance_validates_its_arguments():
         occ(P, [plate, np.array([len(P)])], depth, cam, 1e-4)
     with pytest.raises(ValueError, match="min_fraction"):
         occ(P, [plate], depth, cam, 1e-4, min_fraction=2.0)
-    with pytest.raises(ValueError, match="r"):
+    with pytest.raises(ValueError, match=r"^r must be > 0"):
         occ(P, [plate], depth, cam, -1.0)
     with pytest.raises(ValueError, match="points"):
         occ(P[:, :2], [plate], depth, cam, 1e-4)

@@ -687,7 +687,6 @@ def test_tracking_ablation_keys_and_flow_helping_on_noisy_positions():
     assert res["flow_aided"]["id_switches"] == 0
 
 
-
 def test_tracking_ablation_passes_position_covs_to_the_flow_aided_run_only():
     from flowtrack.tracking_eval import run_tracker, tracking_ablation
 

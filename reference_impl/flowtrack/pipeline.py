@@ -102,7 +102,7 @@ from ._graph import as_labels
 from ._validation import as_array, nonnegative, positive, positive_int
 from .camera import backproject, project
 from .clustering import cluster_motion, drop_small_clusters
-from .rgbd_flow import rgbd_point_flow
+from .rgbd_flow import grey_image, rgbd_point_flow
 from .sceneflow import iterative_graph_scene_flow, nearest_neighbor_targets, rigid_flow_per_cluster
 
 __all__ = [
@@ -113,6 +113,7 @@ __all__ = [
     "detection_pieces",
     "detections_from_clusters",
     "flow_partners",
+    "flow_step",
     "occlusion_position_covariances",
     "open3d_threads",
     "rgbd_cloud_flow",
@@ -228,7 +229,9 @@ class PipelineConfig:
     #: pieces split by a nearer occluder (:func:`detection_pieces`' ``occluders``) are merged when they are
     #: one rigid object, their closest points are at most this far apart (m), ...
     occlusion_max_gap: float = 0.25
-    occlusion_margin: float = 0.02  #: ... and the surface between them is nearer by more than this (m)
+    #: ... and the surface between them is nearer by more than this (m); also how much nearer a surface
+    #: must be to hide a point in the colour test and to cut a piece in occlusion_position_covariances
+    occlusion_margin: float = 0.02
     #: a detection cut by a nearer surface (:func:`occlusion_position_covariances`) has its position
     #: variance widened toward that surface by (this × its visible extent there)²: the hidden part is
     #: unknown, and one as large as the visible one moves the centroid by half the extent. None: off
@@ -273,6 +276,16 @@ def track_confirmer(cfg: PipelineConfig):
                                     else cfg.track_static_position_std ** 2)
 
 
+def flow_step(dt: float, interval: float = 0.1) -> int:
+    r"""Frames between the two frames of a flow pair: :math:`k = \max(1, \operatorname{round}(\text{interval}
+    / \Delta t))` (:func:`flow_partners`; the demo also coasts tracks ``max_misses`` times this).
+
+    >>> flow_step(0.1), flow_step(1 / 30), flow_step(0.5)
+    (1, 3, 1)
+    """
+    return max(1, round(positive(interval, "interval") / positive(dt, "dt")))
+
+
 def flow_partners(n: int, dt: float, interval: float = 0.1) -> list[int]:
     r"""The frame each of ``n`` frames is paired with for scene flow, at least ``interval`` apart in time.
 
@@ -307,9 +320,7 @@ def flow_partners(n: int, dt: float, interval: float = 0.1) -> list[int]:
     [2, 2, 0]
     """
     n = positive_int(n, "n", minimum=2)
-    dt = positive(dt, "dt")
-    interval = positive(interval, "interval")
-    k = max(1, round(interval / dt))
+    k = flow_step(dt, interval)
     out = []
     for t in range(n):
         if t + k <= n - 1:
@@ -567,8 +578,8 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
         itself (a box pushed along its long face stays on that face's plane, and a turning box
         sweeps its faces over themselves); its texture can. A fourth element, the next frame's
         depth image (metres, 0 = none), leaves out the points whose static pixel is covered there
-        by a surface more than 2 cm nearer: a moving object that passes over a static surface
-        changes that surface's colour without moving it.
+        by a surface more than ``occlusion_margin`` nearer: a moving object that passes over a
+        static surface changes that surface's colour without moving it.
     rigid_merge : bool
         Merge touching pieces (closest points within ``cluster_radius``) that one rigid motion
         explains: a turning object's faces move at different velocities, so the motion clustering
@@ -620,7 +631,7 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
         d1 = None
         if len(images) == 4 and images[3] is not None:
             d1 = np.asarray(images[3], dtype=np.float64)
-        grey = (_grey(images[0], "images[0]"), _grey(images[1], "images[1]"), images[2], d1)
+        grey = (grey_image(images[0], "images[0]"), grey_image(images[1], "images[1]"), images[2], d1)
         if grey[0].shape != grey[1].shape:
             raise ValueError(f"images[0] and images[1] must have the same size, got {grey[0].shape} and "
                              f"{grey[1].shape}")
@@ -643,8 +654,8 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
                     d_moving = np.median(tree.query(P[piece] + dt * flow[piece])[0])
                     # colour decides only where geometry cannot: both hypotheses fit about as well
                     ambiguous = d_moving <= 1.5 * d_static
-                    if d_static <= d_moving and (
-                            grey is None or not ambiguous or _colour_static(grey, P[piece], flow[piece], dt)):
+                    if d_static <= d_moving and (grey is None or not ambiguous or _colour_static(
+                            grey, P[piece], flow[piece], dt, cfg.occlusion_margin)):
                         continue
                 pieces.append(piece)
     if rigid_merge and len(pieces) > 1:
@@ -686,22 +697,25 @@ def _one_rigid_motion(P, flow, a, b, rms_a, rms_b, dt, tol) -> bool:
     return bool(_rigid_rms(P, flow, union, dt) ** 2 - pooled <= tol**2)
 
 
-def _merge_rigid(P, pieces, flow, dt, cfg) -> list[np.ndarray]:
+def _merge_rigid_pairs(P, pieces, flow, dt, cfg, near) -> list[np.ndarray]:
+    """Merge the pieces a, b for which ``near(tree_a, b)`` holds and one rigid motion explains both
+    (``rigid_merge_tolerance``); merges are transitive."""
     from scipy.spatial import cKDTree
 
     own = [_rigid_rms(P, flow, p, dt) for p in pieces]
     trees = [cKDTree(P[p]) for p in pieces]
-    pairs = []
-    for a in range(len(pieces)):
-        for b in range(a + 1, len(pieces)):
-            gap = trees[a].query(P[pieces[b]], distance_upper_bound=cfg.cluster_radius)[0].min()
-            if gap > cfg.cluster_radius:
-                continue  # not touching
-            tol = cfg.rigid_merge_tolerance
-            if _one_rigid_motion(P, flow, pieces[a], pieces[b], own[a], own[b], dt, tol):
-                pairs.append((a, b))
-    groups = _groups(len(pieces), pairs)
-    return [np.sort(np.concatenate([pieces[i] for i in g])) for g in groups]
+    pairs = [(a, b) for a in range(len(pieces)) for b in range(a + 1, len(pieces))
+             if near(trees[a], a, b) and _one_rigid_motion(P, flow, pieces[a], pieces[b], own[a], own[b], dt,
+                                                           cfg.rigid_merge_tolerance)]
+    return [np.sort(np.concatenate([pieces[i] for i in g])) for g in _groups(len(pieces), pairs)]
+
+
+def _merge_rigid(P, pieces, flow, dt, cfg) -> list[np.ndarray]:
+    def touching(tree, a, b):  # closest points within cluster_radius
+        gap = tree.query(P[pieces[b]], distance_upper_bound=cfg.cluster_radius)[0].min()
+        return gap <= cfg.cluster_radius
+
+    return _merge_rigid_pairs(P, pieces, flow, dt, cfg, touching)
 
 
 def _occluded_between(xa, xb, depth, cam, margin: float) -> bool:
@@ -726,57 +740,39 @@ def _occluded_between(xa, xb, depth, cam, margin: float) -> bool:
 
 
 def _merge_occluded(P, pieces, flow, depth, cam, cfg, dt) -> list[np.ndarray]:
-    from scipy.spatial import cKDTree
+    def split_by_occluder(tree, a, b):  # closest points near enough, a nearer surface between them
+        d, j = tree.query(P[pieces[b]])
+        ib = int(np.argmin(d))
+        return d[ib] <= cfg.occlusion_max_gap and _occluded_between(
+            P[pieces[a]][j[ib]], P[pieces[b]][ib], depth, cam, cfg.occlusion_margin)
 
-    n = len(pieces)
-    trees = [cKDTree(P[p]) for p in pieces]
-    own = [_rigid_rms(P, flow, p, dt) for p in pieces]
-    pairs = []
-    for a in range(n):
-        for b in range(a + 1, n):
-            d, j = trees[a].query(P[pieces[b]])
-            ib = int(np.argmin(d))
-            if d[ib] > cfg.occlusion_max_gap:
-                continue
-            if not _occluded_between(P[pieces[a]][j[ib]], P[pieces[b]][ib], depth, cam, cfg.occlusion_margin):
-                continue
-            tol = cfg.rigid_merge_tolerance
-            if _one_rigid_motion(P, flow, pieces[a], pieces[b], own[a], own[b], dt, tol):
-                pairs.append((a, b))
-    groups = _groups(n, pairs)
-    return [np.sort(np.concatenate([pieces[i] for i in g])) for g in groups]
+    return _merge_rigid_pairs(P, pieces, flow, dt, cfg, split_by_occluder)
 
 
-def _grey(img, name: str) -> np.ndarray:
-    a = np.asarray(img)
-    if a.ndim == 3 and a.shape[2] in (3, 4):
-        a = a[..., :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114])
-    elif a.ndim != 2:
-        raise ValueError(f"{name} must be an image of shape (H, W, 3) or (H, W), got {a.shape}")
-    a = a.astype(np.float64)
-    return a / 255.0 if np.asarray(img).dtype == np.uint8 else a
+def _pixels(Y, cam, shape, offset=(0.0, 0.0)):
+    """Column, row (nearest pixel) of the projections of ``Y`` moved by ``offset`` px, and whether
+    each lies in front of the camera and inside an image of ``shape`` (outside: column and row -1)."""
+    H, W = shape
+    ok = Y[:, 2] > 1e-6
+    u = np.full(len(Y), -1)
+    r = np.full(len(Y), -1)
+    u[ok], r[ok] = np.round(project(Y[ok], cam) + offset).astype(int).T
+    ok &= (u >= 0) & (u < W) & (r >= 0) & (r < H)
+    return np.where(ok, u, -1), np.where(ok, r, -1), ok
 
 
-def _colour_static(grey, X, v, dt) -> bool:
+def _colour_static(grey, X, v, dt, margin: float) -> bool:
     """Whether the pixels of ``X`` at t match the next image at least as well at their static
     positions as at their moved ones (median absolute grey difference, nearest pixel); with the next
-    depth image, points whose static pixel is covered by a nearer surface there do not count."""
+    depth image, points whose static pixel is covered by a surface nearer by more than ``margin``
+    there do not count."""
     g0, g1, cam, d1 = grey
-    H, W = g0.shape
-
-    def pix(Y):
-        ok = Y[:, 2] > 1e-6
-        u = np.full(len(Y), -1)
-        r = np.full(len(Y), -1)
-        u[ok], r[ok] = np.round(project(Y[ok], cam)).astype(int).T
-        return u, r, ok & (u >= 0) & (u < W) & (r >= 0) & (r < H)
-
-    u0, r0, ok0 = pix(X)
-    u1, r1, ok1 = pix(X + dt * v)
+    u0, r0, ok0 = _pixels(X, cam, g0.shape)
+    u1, r1, ok1 = _pixels(X + dt * v, cam, g0.shape)
     ok = ok0 & ok1
     if d1 is not None:  # something moved in front of the static pixel: its colour says nothing
-        z1 = np.where(ok, d1[np.clip(r0, 0, H - 1), np.clip(u0, 0, W - 1)], 0.0)
-        ok &= ~((z1 > 0) & (z1 < X[:, 2] - 0.02))
+        z1 = np.where(ok, d1[r0, u0], 0.0)
+        ok &= ~((z1 > 0) & (z1 < X[:, 2] - margin))
     if not ok.any():
         return True
     ref = g0[r0[ok], u0[ok]]
@@ -824,6 +820,15 @@ def detections_from_clusters(points, clusters, flow, config: PipelineConfig | No
     Z = [P[piece].mean(axis=0) for piece in pieces]
     V = [flow[piece].mean(axis=0) for piece in pieces]
     return np.array(Z).reshape(-1, 3), np.array(V).reshape(-1, 3)
+
+
+def _piece_index(piece, k: int, n: int) -> np.ndarray:
+    """``pieces[k]`` as an index array into ``n`` points (ValueError naming it otherwise)."""
+    idx = np.asarray(piece)
+    if idx.ndim != 1 or not np.issubdtype(idx.dtype, np.integer) or (idx.size and (
+            idx.min() < 0 or idx.max() >= n)):
+        raise ValueError(f"pieces[{k}] must be a 1-D int array of indices into points (0 .. {n - 1})")
+    return idx
 
 
 #: the 8 directions (unit image vectors) :func:`occlusion_position_covariances` looks along
@@ -909,26 +914,17 @@ def occlusion_position_covariances(points, pieces, depth_t, camera, r, *, scale:
     min_fraction = nonnegative(min_fraction, "min_fraction")
     if min_fraction > 1:
         raise ValueError(f"min_fraction must be in [0, 1], got {min_fraction}")
-    H, W = D.shape
     out = np.broadcast_to(R, (len(pieces), 3, 3)).copy()
     for k, piece in enumerate(pieces):
-        idx = np.asarray(piece)
-        if idx.ndim != 1 or (idx.size and (not np.issubdtype(idx.dtype, np.integer) or idx.min() < 0
-                                           or idx.max() >= len(X))):
-            raise ValueError(f"pieces[{k}] must be a 1-D int array of indices into points "
-                             f"(0 .. {len(X) - 1})")
-        P = X[idx]
-        P = P[P[:, 2] > 1e-9]
+        P = X[_piece_index(piece, k, len(X))]
+        P = P[P[:, 2] > 1e-6]
         if len(P) < 3:
             continue
-        uv = project(P, camera)
         toward = np.zeros((len(P), 2))
         touch = np.zeros(len(P), dtype=bool)
         for o in _RING:
-            q = np.round(uv + offset * o).astype(int)
-            inside = (q[:, 0] >= 0) & (q[:, 0] < W) & (q[:, 1] >= 0) & (q[:, 1] < H)
-            z = np.zeros(len(P))
-            z[inside] = D[q[inside, 1], q[inside, 0]]
+            u, v, inside = _pixels(P, camera, D.shape, offset * o)
+            z = np.where(inside, D[v, u], 0.0)
             nearer = (z > 0) & (z < P[:, 2] - margin)
             toward[nearer] += o
             touch |= nearer
@@ -1035,12 +1031,7 @@ def visible_centroid_velocities(points, pieces, flow, depth_t, depth_t1, camera,
     K = len(pieces)
     lab = np.full(len(X), -1, dtype=np.intp)
     for k, piece in enumerate(pieces):
-        idx = np.asarray(piece)
-        if idx.ndim != 1 or not np.issubdtype(idx.dtype, np.integer) or (idx.size and (
-                idx.min() < 0 or idx.max() >= len(X))):
-            raise ValueError(f"pieces[{k}] must be a 1-D int array of indices into points "
-                             f"(0 .. {len(X) - 1})")
-        lab[idx] = k
+        lab[_piece_index(piece, k, len(X))] = k
     Cin = None
     if velocity_covs is not None:
         from .motion import check_velocity_covs

@@ -124,6 +124,7 @@ from .camera import PinholeCamera, check_camera
 __all__ = [
     "BACKENDS",
     "PENALTIES",
+    "grey_image",
     "pixel_normal_equations",
     "rgbd_point_flow",
     "rgbd_scene_flow",
@@ -260,10 +261,21 @@ def pixel_normal_equations(X, grad_i, r_i, grad_d, r_d, cam: PinholeCamera, w_i=
 # --------------------------------------------------------------------------------------------------
 # image helpers
 # --------------------------------------------------------------------------------------------------
-def _grey(img: np.ndarray) -> np.ndarray:
-    if img.ndim == 3:
-        return img.astype(np.float64) @ np.array([0.299, 0.587, 0.114]) / 255.0
-    return img.astype(np.float64)
+def grey_image(img, name: str = "img") -> np.ndarray:
+    """A colour or grey image as float64 grey levels: uint8 in [0, 1] (RGB or RGBA by the ITU-R 601
+    luma weights 0.299, 0.587, 0.114; grey divided by 255), float as it is.
+
+    >>> grey_image(np.array([[[255, 255, 255], [255, 0, 0]]], dtype=np.uint8)).round(3).tolist()
+    [[1.0, 0.299]]
+    """
+    a = np.asarray(img)
+    if a.ndim == 3 and a.shape[2] in (3, 4):
+        g = a[..., :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114])
+    elif a.ndim == 2:
+        g = a.astype(np.float64)
+    else:
+        raise ValueError(f"{name} must be an image of shape (H, W, 3) or (H, W), got {a.shape}")
+    return g / 255.0 if a.dtype == np.uint8 else g
 
 
 def _down(a: np.ndarray) -> np.ndarray:
@@ -713,7 +725,7 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
         raise ValueError(f"cam is for {cam.height}×{cam.width} images, the images are {shape[0]}×{shape[1]}")
     dt = positive(dt, "dt")
     o = _options(options)
-    I0, I1 = _grey(I0), _grey(I1)
+    I0, I1 = grey_image(I0, "rgb_t"), grey_image(I1, "rgb_t1")
     if o["blur"] > 0:
         I0 = ndimage.gaussian_filter(I0, o["blur"], mode="nearest")
         I1 = ndimage.gaussian_filter(I1, o["blur"], mode="nearest")

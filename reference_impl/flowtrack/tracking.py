@@ -86,7 +86,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import as_array, cholesky, nonnegative, positive, positive_int, probability, spatial_dim
+from ._validation import (
+    as_array,
+    check_psd,
+    cholesky,
+    nonnegative,
+    positive,
+    positive_int,
+    probability,
+    spatial_dim,
+)
 from .association import assign, chi2_gate, greedy_assign, mahalanobis_from_cholesky
 from .confirmation import HitCountConfirmer, SequentialScoreConfirmer, pair_log_likelihood
 from .kalman import BatchKalmanFilter, constant_velocity_model
@@ -605,10 +614,8 @@ class MultiObjectTracker:
             if self._flow is None:
                 raise ValueError("position_covs needs the flow-aware filter: MultiObjectTracker(..., "
                                  "velocity_update=True), p_detect or motion_model='turn_rate'")
-            from .motion import check_velocity_covs
-
-            Rp = as_array(position_covs, "position_covs", (len(Z), self.dim, self.dim))
-            check_velocity_covs(Rp, len(Z), self.dim, "position_covs")  # symmetric positive definite
+            Rp = check_psd(as_array(position_covs, "position_covs", (len(Z), self.dim, self.dim)),
+                           "position_covs", strict=True)
         if self._flow is not None:
             Rv = self._flow.velocity_covariances(Z, V, velocity_covs)
         elif velocity_covs is not None:
@@ -904,7 +911,7 @@ class _FlowOptions:
             Zj = Z
             z_pred, S = kf.predicted_measurements()
             if Rp is not None:  # per pair: the track's P with the detection's own covariance
-                S = (S - kf.R)[:, None] + Rp[None]
+                S = kf.P[:, None, :d, :d] + Rp[None]
         if M == 0 or N == 0:
             matches, ut, ud = assign(np.zeros((M, N)))
         elif self.nllr:

@@ -74,11 +74,9 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
     d = tracker.dim
     for t in range(T):
         V = None if velocities is None else velocities[t]
-        C = None if velocity_covs is None else velocity_covs[t]
-        Rp = None if position_covs is None else position_covs[t]
-        kw = {} if Rp is None else {"position_covs": Rp}
-        reported = (tracker.step(detections[t], V, C, **kw) if C is not None
-                    else tracker.step(detections[t], V, **kw))
+        given = {"velocity_covs": None if velocity_covs is None else velocity_covs[t],
+                 "position_covs": None if position_covs is None else position_covs[t]}
+        reported = tracker.step(detections[t], V, **{k: v for k, v in given.items() if v is not None})
         live = tracker.tracks
         ahead_of = tracker.predict_ahead(ahead)
         now = [tr for tr in reported if tr.misses == 0]

@@ -18,6 +18,7 @@ from flowtrack.pipeline import (
     RGBD_METHOD,
     detection_pieces,
     flow_partners,
+    flow_step,
     occlusion_position_covariances,
     open3d_threads,
     rgbd_cloud_flow,
@@ -297,8 +298,8 @@ def run_demo(
     from flowtrack.tracking import MultiObjectTracker
 
     # max_misses counts flow intervals: input faster than 1 / flow_interval coasts as long in seconds
-    frames_per_interval = max(1, round(cfg.flow_interval / dt))
-    tracker_options = dict(min_hits=cfg.min_hits, max_misses=cfg.max_misses * frames_per_interval,
+    max_misses = cfg.max_misses * flow_step(dt, cfg.flow_interval)
+    tracker_options = dict(min_hits=cfg.min_hits, max_misses=max_misses,
                            gate_prob=cfg.gate_prob, reacquire_radius=cfg.track_reacquire_radius,
                            birth_exclusion_radius=cfg.track_birth_exclusion_radius,
                            confirmer=track_confirmer(cfg))
