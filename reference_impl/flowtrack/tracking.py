@@ -1,29 +1,32 @@
 r"""A multi-object tracker built from small swappable parts (syllabus section 7).
 
-One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' second flowchart:
+One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' second flowchart, one
+part per box:
 
-1. **Predict** every track with the constant-velocity model,
+1. **Predict** every track with the motion model (the *predictor*): by default constant velocity,
    :math:`\hat x_i \leftarrow F \hat x_i`, :math:`P_i \leftarrow F P_i F^\top + Q` (all tracks at
    once in a :class:`~flowtrack.kalman.BatchKalmanFilter`).
-2. **Associate**: build the squared Mahalanobis costs
-   :math:`C_{ij} = (z_j - H\hat x_i)^\top S_i^{-1}(z_j - H\hat x_i)`, :math:`S_i = HP_iH^\top + R`,
-   gate them at :math:`\gamma = F^{-1}_{\chi^2_d}(p)` and solve the gated assignment
+2. **Gate and associate**: the *updater* predicts each track's measurement, :math:`\hat z_i = H\hat
+   x_i`, :math:`S_i = HP_iH^\top + R`; the *associator* builds the squared Mahalanobis costs
+   :math:`C_{ij} = (z_j - \hat z_i)^\top S_i^{-1}(z_j - \hat z_i)`, gates them at
+   :math:`\gamma = F^{-1}_{\chi^2_d}(p)` and solves the gated assignment
    (:func:`flowtrack.association.assign`: most pairs, then least cost). The default
    :class:`GNNAssociator` minimises :math:`C_{ij} + \ln\det S_i` (the pair's negative
    log-likelihood) so that a newborn, very uncertain track cannot steal the detection of an
    established one; ``GNNAssociator(log_det=False)`` uses :math:`C_{ij}` alone, as the syllabus.
-3. **Update** the assigned tracks with their detections (Joseph-form Kalman update).
-4. **Manage** births, occlusions and deletions:
+3. **Update** the assigned tracks with their detections (the *updater*: Joseph-form Kalman update).
+4. **Confirm** (the *confirmer*): a track becomes *confirmed* once it has ``min_hits`` assigned
+   detections (the birth detection counts as the first; :class:`HitCountConfirmer`), or, with
+   :class:`SequentialScoreConfirmer`, once its log-likelihood ratio of "object" against "clutter"
+   passes Wald's threshold.
+5. **Delete** (the *deleter*): a tentative track is deleted at its first miss; a confirmed track
+   without a detection is *coasting* (occluded): it is only predicted, and deleted when its
+   consecutive misses exceed ``max_misses``, i.e. at the ``max_misses + 1``-th consecutive miss; an
+   occlusion of up to ``max_misses`` frames keeps the track and its id.
+6. **Initiate** (the *initiator*): every unassigned detection starts a *tentative* track (position
+   = detection, velocity = the detection's scene-flow velocity if given, else 0 with a large
+   variance), except that
 
-   - every unassigned detection starts a *tentative* track (position = detection, velocity = the
-     detection's scene-flow velocity if given, else 0 with a large variance);
-   - a track becomes *confirmed* once it has ``min_hits`` assigned detections (the birth detection
-     counts as the first; :class:`HitCountConfirmer`), or, with :class:`SequentialScoreConfirmer`,
-     once its log-likelihood ratio of "object" against "clutter" passes Wald's threshold; a
-     tentative track is deleted at its first miss;
-   - a confirmed track without a detection is *coasting* (occluded): it is only predicted. It is
-     deleted when its consecutive misses exceed ``max_misses``, i.e. at the ``max_misses + 1``-th
-     consecutive miss; an occlusion of up to ``max_misses`` frames keeps the track and its id;
    - with ``reacquire_radius`` r, a coasting confirmed track *re-acquires* its object: an unassigned
      detection within r of it (outside its gate: its velocity was learnt while the object was being
      hidden, from a shrinking visible surface, or the visible part jumped) restarts the track from
@@ -34,33 +37,45 @@ One call of :meth:`MultiObjectTracker.step` runs the loop of the syllabus' secon
 
 Track ids come from a counter and are never reused.
 
-Scene flow can enter the filter beyond the birth velocity (issue 15; keyword arguments, off by
-default): ``velocity_update=True`` uses each detection's velocity (with its covariance,
-``step(..., velocity_covs=)``) as a measurement next to its position and gates the joint innovation;
-``p_detect`` and ``clutter_density`` associate by the negative log-likelihood ratio against clutter
-(:func:`flowtrack.association.nllr_cost`, the course's one association objective); and
-``motion_model="turn_rate"`` predicts with constant speed and yaw rate (:mod:`flowtrack.motion`, an
-EKF), so a turning object is extrapolated along its arc; ``step(..., position_covs=)`` gives a
+Scene flow can enter the filter beyond the birth velocity (:class:`FlowOptions`, or the same
+keyword arguments; off by default): ``velocity_update=True`` uses each detection's velocity (with its
+covariance, ``step(..., velocity_covs=)``) as a measurement next to its position and gates the joint
+innovation; ``p_detect`` and ``clutter_density`` associate by the negative log-likelihood ratio
+against clutter (:func:`flowtrack.association.nllr_cost`, the course's one association objective);
+and ``motion_model="turn_rate"`` predicts with constant speed and yaw rate (:mod:`flowtrack.motion`,
+an EKF), so a turning object is extrapolated along its arc; ``step(..., position_covs=)`` gives a
 detection its own position covariance (an occluded object's visible centroid is off its centre).
+These options only choose other parts for the same loop: :class:`MotionPredictor`,
+:class:`FlowUpdater`, :class:`MaskedGNNAssociator` or :class:`NLLRAssociator`, and a
+:class:`SingleDetectionInitiator` that takes the measured velocity covariance (and a yaw-rate state).
 :meth:`MultiObjectTracker.history` gives the per-frame tracks that
 :func:`flowtrack.tracking_io.write_tracks_csv` exports.
 
-The parts have tiny interfaces, in the spirit of Stone Soup, so a lesson can swap one:
+The parts have tiny interfaces, in the spirit of Stone Soup, so a lesson can swap one. Each is a
+:class:`typing.Protocol` (:class:`Predictor`, :class:`Updater`, :class:`Associator`,
+:class:`Initiator`, :class:`Deleter`, :class:`Confirmer`), so any object with these methods plugs in
+(M tracks, N detections, d spatial axes, n state components, m measured components; a frame's
+detections travel as :class:`Detections`):
 
 =================  =========================================================================
 part               interface
 =================  =========================================================================
-predictor          ``predict(kf) -> (z_pred (M,m), S (M,m,m))``
-associator         ``associate(z_pred, S, detections) -> (matches (K,2), unmatched_tracks,
+predictor          ``new_filter(dt, q, R (d,d), dim) -> filter``; ``predict(kf) -> None``;
+                   ``predict_ahead(kf, n) -> (x (M,n), P (M,n,n))``
+updater            ``check(Detections) -> Detections``;
+                   ``predict_measurements(kf, Detections) -> MeasurementPrediction`` (``z_pred (M,m)``,
+                   ``S (M,m,m) or (M,N,m,m)``, ``measurements (N,m)``, ``has_velocity (N,)``);
+                   ``update(kf, Detections, matches (K,2)) -> None``
+associator         ``associate(z_pred, S, measurements) -> (matches (K,2), unmatched_tracks,
                    unmatched_detections)``
-updater            ``update(kf, detections, matches) -> None``
-initiator          ``initiate(detections (k,d), velocities (k,d) or None) -> (x0 (k,n), P0 (k,n,n))``
+initiator          ``initiate(positions (k,d), velocities (k,d) or None, velocity_covs (k,d,d) or None)
+                   -> (x0 (k,n), P0 (k,n,n))``
 deleter            ``delete(hits (M,), misses (M,), confirmed (M,)) -> bool mask (M,)``
 confirmer          ``initial_scores(k) -> (k,)``; ``update_scores(scores (M,), matched (K,),
                    log_likelihood (K,), has_velocity (K,), missed, velocities=None (K, d),
                    velocity_covs=None (K, d, d)) -> (M,)``;
                    ``decide(scores (M,), hits (M,)) -> (confirm (M,), reject (M,))``;
-                   ``needs_likelihood`` (bool); with ``needs_positions`` (bool, optional) also
+                   ``needs_likelihood`` (bool); with ``needs_positions`` (bool) also
                    ``positions`` (K, d), ``anchors`` (M, d) (mean of each track's detections so far),
                    ``anchor_counts`` (M,) and ``position_cov`` (d, d) (the tracker's R)
 =================  =========================================================================
@@ -82,35 +97,58 @@ array([-1.,  0.])
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ._validation import (
-    as_array,
-    check_psd,
-    cholesky,
-    nonnegative,
-    positive,
-    positive_int,
-    probability,
-    spatial_dim,
+from ._tracking_parts import (
+    Associator,
+    Confirmer,
+    Deleter,
+    Detections,
+    FlowUpdater,
+    GNNAssociator,
+    GreedyAssociator,
+    Initiator,
+    KalmanPredictor,
+    KalmanUpdater,
+    MaskedGNNAssociator,
+    MeasurementPrediction,
+    MissCountDeleter,
+    MotionPredictor,
+    NLLRAssociator,
+    Predictor,
+    SingleDetectionInitiator,
+    Updater,
 )
-from .association import assign, chi2_gate, greedy_assign, mahalanobis_from_cholesky
+from ._validation import as_array, check_psd, nonnegative, positive, positive_int, probability, spatial_dim
 from .confirmation import HitCountConfirmer, SequentialScoreConfirmer, pair_log_likelihood
-from .kalman import BatchKalmanFilter, constant_velocity_model
+from .kalman import constant_velocity_model
 
 __all__ = [
+    "Associator",
+    "Confirmer",
+    "Deleter",
+    "Detections",
+    "FlowOptions",
+    "FlowUpdater",
     "GNNAssociator",
     "GreedyAssociator",
     "HitCountConfirmer",
+    "Initiator",
     "KalmanPredictor",
     "KalmanUpdater",
+    "MaskedGNNAssociator",
+    "MeasurementPrediction",
     "MissCountDeleter",
+    "MotionPredictor",
     "MultiObjectTracker",
+    "NLLRAssociator",
+    "Predictor",
     "SequentialScoreConfirmer",
     "SingleDetectionInitiator",
     "Track",
+    "Updater",
     "pair_log_likelihood",
 ]
 
@@ -174,164 +212,58 @@ class Track:
 
 
 # ----------------------------------------------------------------------------------------------------
-# parts
+# the flow options
 # ----------------------------------------------------------------------------------------------------
-class KalmanPredictor:
-    """Predict every track with the filter's motion model; return the predicted measurements.
+@dataclass(frozen=True)
+class FlowOptions:
+    """How scene flow enters :class:`MultiObjectTracker` beyond the birth velocity (default: not at all).
 
-    ``predict(kf)`` calls ``kf.predict()`` (one batched time update) and returns
-    ``kf.predicted_measurements()``: ``z_pred = H x_i`` (M, m) and ``S_i = H P_i H^T + R`` (M, m, m).
-    """
+    The same options are keyword arguments of the tracker; pass either this or them. Any option
+    that is on makes the tracker run the flow-aware parts (on a
+    :class:`flowtrack.motion.MotionBatchFilter`) instead of the position-only ones.
 
-    def predict(self, kf: BatchKalmanFilter):
-        kf.predict()
-        return kf.predicted_measurements()
-
-
-class GNNAssociator:
-    r"""Global nearest neighbour: Mahalanobis gate, then the optimal gated assignment.
-
-    A pair ``(i, j)`` is admissible when its squared Mahalanobis distance
-    :math:`d^2_{ij} = (z_j - \hat z_i)^\top S_i^{-1} (z_j - \hat z_i)` is at most the gate
-    :math:`\gamma = F^{-1}_{\chi^2_m}(p)`. Among admissible pairs the assignment minimises the sum of
-
-    .. math::  C_{ij} = d^2_{ij} + \ln\det S_i \quad (\texttt{log\_det=True, default}), \qquad
-               C_{ij} = d^2_{ij} \quad (\texttt{log\_det=False}),
-
-    i.e. (up to a constant) :math:`-2 \ln \mathcal N(z_j; \hat z_i, S_i)`, the negative log-likelihood
-    of the pair. The :math:`\ln\det S_i` term matters when tracks have very different
-    uncertainties: a track born last frame (velocity unknown, large :math:`S`) makes *every* nearby
-    detection look close in Mahalanobis terms, and with :math:`d^2` alone it steals the detection of
-    an established track whose detection was, by chance, just outside that track's gate one frame
-    earlier (an identity switch). When all :math:`S_i` are equal the two costs give the same matching.
-
-    Parameters
+    Attributes
     ----------
-    gate_prob : float
-        Probability that a correct detection falls inside the gate, ``0 < gate_prob < 1``.
-    log_det : bool
-        Add :math:`\ln\det S_i` to the assignment cost (default ``True``); ``False`` uses the pure
-        squared Mahalanobis distance of the syllabus.
-
-    Notes
-    -----
-    ``gate(m)`` returns the threshold, ``assigner(cost, gate)`` the matching
-    (:func:`flowtrack.association.assign`); subclasses override one (see :class:`GreedyAssociator`).
+    velocity_update : bool
+        Use the detections' velocities as measurements (:class:`FlowUpdater`).
+    velocity_cov : float or array_like, shape (dim, dim), optional
+        Velocity measurement covariance of the detections without ``velocity_covs`` (default: the
+        tracker's ``flow_velocity_var`` ``I``).
+    p_detect, clutter_density : float, optional
+        Associate by the negative log-likelihood ratio (:class:`NLLRAssociator`); both or neither.
+    velocity_clutter_density : float
+        Clutter density in velocity space (per (m/s)^dim) of detections with a velocity.
+    motion_model : {"cv", "turn_rate"}
+        The motion model of the :class:`MotionPredictor`.
+    q_omega, omega_var : float
+        Yaw-rate random walk ((rad/s)² per s) and initial yaw-rate variance ((rad/s)²) of the
+        turn-rate model.
+    turn_axis : array_like, shape (3,), optional
+        Normal of the plane of motion of the 3-D turn-rate model (default z).
     """
 
-    def __init__(self, gate_prob: float = 0.99, log_det: bool = True):
-        self.gate_prob = probability(gate_prob, "gate_prob")
-        self.log_det = bool(log_det)
-        self._gates: dict[int, float] = {}
+    velocity_update: bool = False
+    velocity_cov: float | np.ndarray | None = None
+    p_detect: float | None = None
+    clutter_density: float | None = None
+    velocity_clutter_density: float = 1.0
+    motion_model: str = "cv"
+    q_omega: float = 1.0
+    omega_var: float = 4.0
+    turn_axis: np.ndarray | None = None
 
-    def gate(self, m: int) -> float:
-        """The gate for ``m``-dimensional measurements (cached)."""
-        if m not in self._gates:
-            self._gates[m] = chi2_gate(m, self.gate_prob)
-        return self._gates[m]
-
-    def assigner(self, cost: np.ndarray, gate: float):
-        """Most admissible pairs, then least cost (:func:`flowtrack.association.assign`)."""
-        return assign(cost, gate, validate=False)
-
-    def associate(self, z_pred: np.ndarray, S: np.ndarray, detections: np.ndarray):
-        """Return ``(matches (K, 2), unmatched_tracks, unmatched_detections)``."""
-        M, N = z_pred.shape[0], detections.shape[0]
-        gate = self.gate(detections.shape[1])
-        if M == 0 or N == 0:
-            return self.assigner(np.zeros((M, N)), gate)
-        L = cholesky(S, "S")
-        d2 = mahalanobis_from_cholesky(z_pred, L, detections, validate=False)
-        if not self.log_det:
-            return self.assigner(d2, gate)
-        logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(axis=-1)
-        cost = np.where(d2 <= gate, d2 + logdet[:, None], np.inf)
-        return self.assigner(cost, np.inf)
+    @property
+    def on(self) -> bool:
+        """Whether any option is on (the tracker then runs the flow-aware parts)."""
+        return (bool(self.velocity_update) or self.p_detect is not None or self.clutter_density is not None
+                or self.motion_model != "cv")
 
 
-class GreedyAssociator(GNNAssociator):
-    """Like :class:`GNNAssociator` but matches greedily, cheapest admissible pair first.
-
-    Parameters are those of :class:`GNNAssociator`.
-
-    The assignment of :func:`flowtrack.association.greedy_assign`; a lesson swaps it in to show
-    where greedy matching loses pairs or swaps identities.
-    """
-
-    def assigner(self, cost: np.ndarray, gate: float):
-        return greedy_assign(cost, gate, validate=False)
-
-
-class KalmanUpdater:
-    """Update the matched tracks: ``kf.update(Z, mask)`` with one detection per matched track."""
-
-    def update(self, kf: BatchKalmanFilter, detections: np.ndarray, matches: np.ndarray) -> None:
-        M = len(kf)
-        if M == 0 or matches.shape[0] == 0:
-            return
-        Z = np.full((M, kf.dim_z), np.nan)
-        Z[matches[:, 0]] = detections[matches[:, 1]]
-        mask = np.zeros(M, dtype=bool)
-        mask[matches[:, 0]] = True
-        kf.update(Z, mask)
-
-
-class SingleDetectionInitiator:
-    r"""Start a track from one detection: position = detection, velocity = flow velocity or 0.
-
-    .. math::  x_0 = \begin{bmatrix} z \\ v \end{bmatrix}, \qquad
-               P_0 = \begin{bmatrix} R & 0 \\ 0 & \sigma_v^2 I \end{bmatrix},
-
-    with :math:`v` the detection's scene-flow velocity and :math:`\sigma_v^2` = ``flow_velocity_var``
-    when it is given, else (no velocities, or a NaN row) :math:`v = 0` and
-    :math:`\sigma_v^2` = ``velocity_var``.
-
-    Parameters
-    ----------
-    R : numpy.ndarray, shape (dim, dim)
-        Measurement noise covariance (the position uncertainty of one detection).
-    velocity_var : float
-        Velocity variance without a velocity measurement (> 0): covers the speeds expected.
-    flow_velocity_var : float
-        Velocity variance of a scene-flow velocity (> 0), usually much smaller.
-    """
-
-    def __init__(self, R: np.ndarray, velocity_var: float, flow_velocity_var: float):
-        self.R = np.asarray(R, dtype=float)
-        self.dim = self.R.shape[0]
-        self.velocity_var = positive(velocity_var, "velocity_var")
-        self.flow_velocity_var = positive(flow_velocity_var, "flow_velocity_var")
-
-    def initiate(self, detections: np.ndarray, velocities: np.ndarray | None):
-        """Return ``x0 (k, 2d)`` and ``P0 (k, 2d, 2d)``; a NaN row of ``velocities`` means unknown."""
-        k, d = detections.shape
-        x0 = np.zeros((k, 2 * d))
-        x0[:, :d] = detections
-        P0 = np.zeros((k, 2 * d, 2 * d))
-        P0[:, :d, :d] = self.R
-        var = np.full(k, self.velocity_var)
-        if velocities is not None:
-            known = ~np.isnan(velocities).any(axis=1)
-            x0[known, d:] = velocities[known]
-            var[known] = self.flow_velocity_var
-        P0[:, d:, d:] = var[:, None, None] * np.eye(d)
-        return x0, P0
-
-
-class MissCountDeleter:
-    """Delete tentative tracks at their first miss and confirmed tracks after ``max_misses`` misses.
-
-    ``delete(hits, misses, confirmed)`` returns the bool mask
-    ``(misses > 0 & ~confirmed) | (misses > max_misses)``: a confirmed track survives up to
-    ``max_misses`` consecutive misses (coasting) and is deleted at the ``max_misses + 1``-th.
-    """
-
-    def __init__(self, max_misses: int = 3):
-        self.max_misses = positive_int(max_misses, "max_misses", minimum=0)
-
-    def delete(self, hits: np.ndarray, misses: np.ndarray, confirmed: np.ndarray) -> np.ndarray:
-        return ((misses > 0) & ~confirmed) | (misses > self.max_misses)
-
+def _unchanged(value, default) -> bool:
+    """Whether a keyword still has its default (None, or an equal number / string / bool)."""
+    if value is default:
+        return True
+    return default is not None and isinstance(value, (bool, int, float, str)) and value == default
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -351,7 +283,7 @@ class MultiObjectTracker:
     dim : int
         Spatial dimension, 2 or 3 (1 also works).
     gate_prob : float
-        Gate probability of the default :class:`GNNAssociator` (``0 < gate_prob < 1``).
+        Gate probability of the default associator (``0 < gate_prob < 1``).
     min_hits : int
         Detections needed to confirm a track (>= 1; 1 confirms at birth).
     max_misses : int
@@ -366,9 +298,11 @@ class MultiObjectTracker:
     max_history : int, optional
         Keep the posterior of the last ``max_history`` frames for :meth:`trajectories` (default:
         all frames; the memory grows by about ``M * (2d + 4d^2) * 8`` bytes per frame).
+    flow : FlowOptions, optional
+        The flow options below as one object (then leave their keywords alone).
     velocity_update : bool, optional
         Use the detections' velocities (scene flow) as measurements in the update, not only to start
-        tracks (default False: today's behaviour). A detection with a velocity and a velocity
+        tracks (default False). A detection with a velocity and a velocity
         covariance updates its track with the stacked position-velocity measurement, one without
         with its position alone (Joseph form, :class:`flowtrack.motion.MotionBatchFilter`), and the
         association scores and gates the joint innovation (chi-square with 2 ``dim`` degrees of
@@ -403,23 +337,26 @@ class MultiObjectTracker:
         detected in the same frame: it is another piece of that object (a part cut off by an
         occluder, a face that moves differently), not a new one. Coasting tracks re-acquire first
         (``reacquire_radius``). Default None: every unassigned detection starts a track.
-
-    With any of ``velocity_update``, ``p_detect`` or ``motion_model="turn_rate"`` the tracker runs on
-    a :class:`flowtrack.motion.MotionBatchFilter` and its own association and update (the
-    ``predictor``, ``associator`` and ``updater`` parts are then not used; ``initiator`` and
-    ``deleter`` are).
     predictor, associator, updater, initiator, deleter, confirmer : optional
-        Replacement parts (see the module docstring); defaults :class:`KalmanPredictor`,
-        :class:`GNNAssociator` ``(gate_prob)``, :class:`KalmanUpdater`,
-        :class:`SingleDetectionInitiator`, :class:`MissCountDeleter` ``(max_misses)``,
+        Parts (see the module docstring) in place of the ones the options choose. Without flow
+        options: :class:`KalmanPredictor`, :class:`GNNAssociator` ``(gate_prob)``,
+        :class:`KalmanUpdater`, :class:`SingleDetectionInitiator`; with any of ``velocity_update``,
+        ``p_detect`` or ``motion_model="turn_rate"``: :class:`MotionPredictor` ``(motion_model)``,
+        :class:`MaskedGNNAssociator` ``(gate_prob)`` or :class:`NLLRAssociator` ``(p_detect, ...)``,
+        :class:`FlowUpdater` ``(velocity_cov)`` and a :class:`SingleDetectionInitiator` with the
+        turn-rate model's yaw-rate state; always :class:`MissCountDeleter` ``(max_misses)`` and
         :class:`HitCountConfirmer` ``(min_hits)``. A custom associator brings its own gate
         (``gate_prob`` is then unused), a custom deleter or confirmer its own rule (``min_hits`` is
-        then unused); :class:`SequentialScoreConfirmer` confirms by the track score.
+        then unused); :class:`SequentialScoreConfirmer` confirms by the track score. The predictor
+        makes the filter, so the updater must work on it (:class:`FlowUpdater` needs a
+        :class:`MotionPredictor`) and the initiator must start its states.
 
     Attributes
     ----------
-    kf : BatchKalmanFilter
-        The state of all live tracks (rows aligned with :attr:`tracks`).
+    kf : BatchKalmanFilter or flowtrack.motion.MotionBatchFilter
+        The state of all live tracks (rows aligned with :attr:`tracks`), made by the predictor.
+    flow : FlowOptions
+        The flow options.
     frame : int
         Index of the last processed frame (-1 before the first :meth:`step`).
 
@@ -441,6 +378,12 @@ class MultiObjectTracker:
     [(0, 'confirmed', 2)]
     >>> [(t.id, t.status, t.misses) for t in trk.step(np.empty((0, 3)))]   # occluded
     [(0, 'coasting', 1)]
+
+    The flow options choose the flow-aware parts; the same tracker from parts:
+
+    >>> a = MultiObjectTracker(0.1, 1.0, 1e-4, dim=3, flow=FlowOptions(velocity_update=True))
+    >>> type(a.predictor).__name__, type(a.updater).__name__, type(a.associator).__name__
+    ('MotionPredictor', 'FlowUpdater', 'MaskedGNNAssociator')
     """
 
     def __init__(
@@ -455,13 +398,14 @@ class MultiObjectTracker:
         *,
         velocity_var=None,
         flow_velocity_var=None,
-        predictor=None,
-        associator=None,
-        updater=None,
-        initiator=None,
-        deleter=None,
-        confirmer=None,
+        predictor: Predictor | None = None,
+        associator: Associator | None = None,
+        updater: Updater | None = None,
+        initiator: Initiator | None = None,
+        deleter: Deleter | None = None,
+        confirmer: Confirmer | None = None,
         max_history=None,
+        flow: FlowOptions | None = None,
         velocity_update=False,
         velocity_cov=None,
         p_detect=None,
@@ -481,25 +425,33 @@ class MultiObjectTracker:
                                        else positive(birth_exclusion_radius, "birth_exclusion_radius"))
         self.q = nonnegative(q, "q")
         self.dim = spatial_dim(dim, "dim")
-        F, H, Q, R = constant_velocity_model(self.dt, self.q, r, self.dim)
+        _, _, _, R = constant_velocity_model(self.dt, self.q, r, self.dim)
         self.min_hits = positive_int(min_hits, "min_hits")
         self.max_misses = positive_int(max_misses, "max_misses", minimum=0)
         self.gate_prob = probability(gate_prob, "gate_prob")
         sr2 = float(np.mean(np.diag(R)))
         velocity_var = (100.0 * sr2 / self.dt**2) if velocity_var is None else velocity_var
         flow_velocity_var = (sr2 / self.dt**2) if flow_velocity_var is None else flow_velocity_var
-        self.predictor = predictor if predictor is not None else KalmanPredictor()
-        self.associator = associator if associator is not None else GNNAssociator(self.gate_prob)
-        self.updater = updater if updater is not None else KalmanUpdater()
-        self.initiator = (
-            initiator
-            if initiator is not None
-            else SingleDetectionInitiator(R, velocity_var=velocity_var, flow_velocity_var=flow_velocity_var)
-        )
+        keywords = FlowOptions(velocity_update, velocity_cov, p_detect, clutter_density,
+                               velocity_clutter_density, motion_model, q_omega, omega_var, turn_axis)
+        if flow is None:
+            flow = keywords
+        elif not all(_unchanged(getattr(keywords, f.name), f.default) for f in fields(FlowOptions)):
+            raise ValueError("give the flow options either as flow=FlowOptions(...) or as keywords, not both")
+        self.flow = flow
+        default = self._default_parts(flow, R, velocity_var, flow_velocity_var)
+        self.predictor = predictor if predictor is not None else default["predictor"]
+        self.associator = associator if associator is not None else default["associator"]
+        self.updater = updater if updater is not None else default["updater"]
+        self.initiator = initiator if initiator is not None else default["initiator"]
         self.deleter = deleter if deleter is not None else MissCountDeleter(self.max_misses)
         self.confirmer = confirmer if confirmer is not None else HitCountConfirmer(self.min_hits)
-        n = 2 * self.dim
-        self.kf = BatchKalmanFilter(F, H, Q, R, np.zeros((0, n)), np.eye(n))
+        self.kf = self.predictor.new_filter(self.dt, self.q, R, self.dim)
+        n_state = np.shape(self.kf.x)[1]
+        n_born = np.shape(self.initiator.initiate(np.zeros((0, self.dim)), None)[0])[1]
+        if n_born != n_state:
+            raise ValueError(f"the initiator starts states of {n_born} components, the predictor's filter "
+                             f"holds {n_state}")
         self._ids = np.zeros(0, dtype=np.int64)
         self._hits = np.zeros(0, dtype=np.int64)
         self._misses = np.zeros(0, dtype=np.int64)
@@ -519,15 +471,33 @@ class MultiObjectTracker:
         self._log = deque(maxlen=max_history)
         self._counts: deque[np.ndarray] = deque(maxlen=max_history)  # per frame (3, M): hits, misses, age
         self._snapshot: list[Track] = []
-        self._flow = None
-        if velocity_update or p_detect is not None or clutter_density is not None or motion_model != "cv":
-            self._flow = _FlowOptions(self, R, flow_velocity_var, velocity_update, velocity_cov, p_detect,
-                                      clutter_density, velocity_clutter_density, motion_model, q_omega,
-                                      omega_var, turn_axis)
-            self.kf = self._flow.make_filter()
+
+    def _default_parts(self, flow: FlowOptions, R, velocity_var, flow_velocity_var) -> dict:
+        """The predictor, associator, updater and initiator the flow options choose."""
+        if not flow.on:
+            return {"predictor": KalmanPredictor(), "associator": GNNAssociator(self.gate_prob),
+                    "updater": KalmanUpdater(),
+                    "initiator": SingleDetectionInitiator(R, velocity_var, flow_velocity_var)}
+        omega_var = positive(flow.omega_var, "omega_var")
+        turn_rate = flow.motion_model == "turn_rate"
+        initiator = SingleDetectionInitiator(R, velocity_var, flow_velocity_var,
+                                             yaw_rate_var=omega_var if turn_rate else None)
+        if (flow.p_detect is None) != (flow.clutter_density is None):
+            raise ValueError("p_detect and clutter_density must be given together")
+        velocity_cov = float(flow_velocity_var) if flow.velocity_cov is None else flow.velocity_cov
+        updater = FlowUpdater(self.dim, velocity_cov, velocity_update=flow.velocity_update)
+        if flow.p_detect is not None:
+            associator = NLLRAssociator(flow.p_detect, flow.clutter_density, dim=self.dim,
+                                        velocity_clutter_density=flow.velocity_clutter_density,
+                                        gate_prob=self.gate_prob)
+        else:
+            associator = MaskedGNNAssociator(self.gate_prob)
+        predictor = MotionPredictor(flow.motion_model, flow.q_omega, flow.turn_axis)
+        return {"predictor": predictor, "associator": associator, "updater": updater, "initiator": initiator}
 
     # -- input ---------------------------------------------------------------------------------------
-    def _check_detections(self, detections, velocities):
+    def _detections(self, detections, velocities, velocity_covs, position_covs) -> Detections:
+        """One frame's input checked: shapes, NaN/inf, symmetric positive (semi-)definite covariances."""
         d = self.dim
         Z = as_array(detections, "detections")
         if Z.size == 0 and Z.ndim <= 1:
@@ -543,9 +513,128 @@ class MultiObjectTracker:
                 raise ValueError(
                     f"velocities must have shape ({Z.shape[0]}, {d}) like detections, got {V.shape}"
                 )
-        return Z, V
+        Rv = None
+        if velocity_covs is not None:
+            from .motion import check_velocity_covs
+
+            if V is None:
+                raise ValueError("velocity_covs needs velocities")
+            Rv = check_velocity_covs(velocity_covs, len(Z), d)
+        Rp = None
+        if position_covs is not None:
+            Rp = check_psd(as_array(position_covs, "position_covs", (len(Z), d, d)), "position_covs",
+                           strict=True)
+        return Detections(Z, V, Rv, Rp)
 
     # -- the loop ------------------------------------------------------------------------------------
+    def step(self, detections, velocities=None, velocity_covs=None, position_covs=None) -> list[Track]:
+        """Process one frame of detections; return the reported (confirmed or coasting) tracks.
+
+        Parameters
+        ----------
+        detections : array_like, shape (N, dim)
+            Detected object positions in this frame (``N`` may be 0).
+        velocities : array_like, shape (N, dim), optional
+            Per-detection velocity (e.g. the mean scene flow of the detection's cluster); it starts
+            the velocity of tracks born from these detections and, with ``velocity_update=True``, is
+            measured. A row of NaN marks a detection without a velocity (inf is rejected).
+        velocity_covs : array_like, shape (N, dim, dim), optional
+            Covariance of each velocity (e.g. :func:`flowtrack.motion.detection_velocity_covariances`),
+            used with ``velocity_update=True``; a NaN row falls back to ``velocity_cov``.
+        position_covs : array_like, shape (N, dim, dim), optional
+            Each detection's own position covariance (symmetric positive definite), in place of R
+            in its gate, association cost and update (e.g.
+            :func:`flowtrack.pipeline.occlusion_position_covariances`: a detection cut by an
+            occluder is off the object's centroid along the occluder). Needs the flow-aware filter
+            (``velocity_update=True``, ``p_detect`` or the turn-rate model). Tracks born from these
+            detections start with R, as any.
+
+        Returns
+        -------
+        list of Track
+            Tracks with status ``"confirmed"`` or ``"coasting"``, in order of id.
+
+        Raises
+        ------
+        ValueError
+            ``detections`` or ``velocities`` of the wrong shape or containing NaN/inf; covariances of
+            the wrong shape or not positive (semi-)definite; ``velocity_covs`` or ``position_covs``
+            the updater cannot use. Nothing has changed then (the frame is not counted).
+        """
+        dets = self.updater.check(self._detections(detections, velocities, velocity_covs, position_covs))
+        self.frame += 1
+        # 1. predict every track
+        self.predictor.predict(self.kf)
+        # 2. gate and associate the detections with the tracks' predicted measurements
+        predicted = self.updater.predict_measurements(self.kf, dets)
+        matches, missed, unmatched = self._associate(predicted)
+        # 3. update the matched tracks with their detections
+        self.updater.update(self.kf, dets, matches)
+        # 4. count hits and misses, score and confirm
+        reject = self._confirm(dets, predicted, matches, missed)
+        # 5. delete the tracks that ended (where confirmed tracks were detected is kept for the births)
+        held = self._detected_confirmed(matches[:, 0])
+        self._delete(reject)
+        # 6. start tracks from the unmatched detections
+        self._initiate(dets.subset(unmatched), held)
+        return self._record()
+
+    # -- the steps -----------------------------------------------------------------------------------
+    def _associate(self, predicted: MeasurementPrediction):
+        """The associator's matching as int arrays (a custom associator may return lists)."""
+        matches, missed, unmatched = self.associator.associate(predicted.z_pred, predicted.S,
+                                                                predicted.measurements)
+        return (np.asarray(matches, dtype=np.intp).reshape(-1, 2), np.asarray(missed, dtype=np.intp),
+                np.asarray(unmatched, dtype=np.intp))
+
+    def _confirm(self, dets: Detections, predicted: MeasurementPrediction, matches, missed) -> np.ndarray:
+        """Hits, misses, ages and scores after this frame's matches; confirm tracks; return the mask
+        of the tracks the confirmer rejects."""
+        matched, j = matches[:, 0], matches[:, 1]
+        self._hits[matched] += 1
+        self._misses[matched] = 0
+        self._misses[missed] += 1
+        self._age += 1
+        confirmer = self.confirmer
+        if confirmer.needs_likelihood:
+            # the density of each match under its track's prior predicted measurement
+            loglik = pair_log_likelihood(predicted.z_pred, predicted.S, predicted.measurements, matches)
+            pos = {}
+            if confirmer.needs_positions:
+                anchors = self._anchor_sum / np.maximum(self._anchor_n, 1)[:, None]
+                pos = dict(positions=dets.positions[j], anchors=anchors, anchor_counts=self._anchor_n,
+                           position_cov=self._R)
+            V, Rv = dets.velocities, dets.velocity_covs
+            self._scores = confirmer.update_scores(
+                self._scores, matched, loglik, predicted.has_velocity[j], missed,
+                velocities=None if V is None else V[j], velocity_covs=None if Rv is None else Rv[j], **pos)
+        self._anchor_sum[matched] += dets.positions[j]
+        self._anchor_n[matched] += 1
+        confirm, reject = confirmer.decide(self._scores, self._hits)
+        self._confirmed |= confirm
+        return reject
+
+    def _detected_confirmed(self, matched) -> np.ndarray:
+        """Positions (K, dim) of the confirmed tracks detected this frame (only with
+        ``birth_exclusion_radius``: no births near them)."""
+        if self.birth_exclusion_radius is None:
+            return np.zeros((0, self.dim))
+        return np.array(self.kf.x)[matched[self._confirmed[matched]], : self.dim]
+
+    def _delete(self, reject) -> None:
+        """Drop the tracks the deleter ends (occlusions beyond ``max_misses``, tentative tracks that
+        missed) and the tentative ones the confirmer rejects."""
+        dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
+        dead |= reject & ~self._confirmed
+        if dead.any():
+            keep = ~dead
+            self.kf.keep(keep)
+            (self._ids, self._hits, self._misses, self._age, self._confirmed, self._scores,
+             self._anchor_sum, self._anchor_n) = (
+                a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed,
+                                  self._scores, self._anchor_sum, self._anchor_n)
+            )
+
     def _reacquire_at_birth(self, Z, x0, P0) -> np.ndarray:
         """Re-acquisition of unassigned detections: each coasting confirmed track takes the nearest
         detection within ``reacquire_radius`` (nearest pairs first) and restarts from its birth state
@@ -575,134 +664,40 @@ class MultiObjectTracker:
             self.kf.x, self.kf.P = x, P
         return taken
 
-    def step(self, detections, velocities=None, velocity_covs=None, position_covs=None) -> list[Track]:
-        """Process one frame of detections; return the reported (confirmed or coasting) tracks.
+    def _initiate(self, new: Detections, held: np.ndarray) -> None:
+        """Start tracks from the unmatched detections ``new``: a coasting track re-acquires the
+        nearest one first (``reacquire_radius``), none starts near ``held`` (``birth_exclusion_radius``)."""
+        if len(new) == 0:
+            return
+        Z = new.positions
+        x0, P0 = self.initiator.initiate(Z, new.velocities, new.velocity_covs)
+        if self.reacquire_radius is not None:
+            back = self._reacquire_at_birth(Z, x0, P0)
+            x0, P0, Z = x0[~back], P0[~back], Z[~back]
+        if len(held) and len(Z):
+            d2 = ((Z[:, None, : self.dim] - held[None]) ** 2).sum(axis=2)
+            part = (d2 <= self.birth_exclusion_radius**2).any(axis=1)
+            x0, P0, Z = x0[~part], P0[~part], Z[~part]
+        k = len(Z)
+        if k == 0:
+            return
+        self.kf.append(x0, P0)
+        self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + k)])
+        self._next_id += k
+        self._hits = np.concatenate([self._hits, np.ones(k, dtype=np.int64)])
+        self._misses = np.concatenate([self._misses, np.zeros(k, dtype=np.int64)])
+        self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
+        scores0 = self.confirmer.initial_scores(k)
+        self._scores = np.concatenate([self._scores, scores0])
+        self._anchor_sum = np.concatenate([self._anchor_sum, Z])
+        self._anchor_n = np.concatenate([self._anchor_n, np.ones(k, dtype=np.int64)])
+        self._confirmed = np.concatenate(
+            [self._confirmed, self.confirmer.decide(scores0, np.ones(k, dtype=np.int64))[0]])
 
-        Parameters
-        ----------
-        detections : array_like, shape (N, dim)
-            Detected object positions in this frame (``N`` may be 0).
-        velocities : array_like, shape (N, dim), optional
-            Per-detection velocity (e.g. the mean scene flow of the detection's cluster); used
-            only to initialise the velocity of tracks born from these detections. A row of NaN
-            marks a detection without a velocity (inf is rejected).
-        velocity_covs : array_like, shape (N, dim, dim), optional
-            Covariance of each velocity (e.g. :func:`flowtrack.motion.detection_velocity_covariances`),
-            used with ``velocity_update=True``; a NaN row falls back to ``velocity_cov``.
-        position_covs : array_like, shape (N, dim, dim), optional
-            Each detection's own position covariance (symmetric positive definite), in place of R
-            in its gate, association cost and update (e.g.
-            :func:`flowtrack.pipeline.occlusion_position_covariances`: a detection cut by an
-            occluder is off the object's centroid along the occluder). Needs the flow-aware filter
-            (``velocity_update=True``, ``p_detect`` or the turn-rate model). Tracks born from these
-            detections start with R, as any.
-
-        Returns
-        -------
-        list of Track
-            Tracks with status ``"confirmed"`` or ``"coasting"``, in order of id.
-
-        Raises
-        ------
-        ValueError
-            ``detections`` or ``velocities`` of the wrong shape or containing NaN/inf.
-        """
-        Z, V = self._check_detections(detections, velocities)
-        Rv = None
-        Rp = None
-        if position_covs is not None:
-            if self._flow is None:
-                raise ValueError("position_covs needs the flow-aware filter: MultiObjectTracker(..., "
-                                 "velocity_update=True), p_detect or motion_model='turn_rate'")
-            Rp = check_psd(as_array(position_covs, "position_covs", (len(Z), self.dim, self.dim)),
-                           "position_covs", strict=True)
-        if self._flow is not None:
-            Rv = self._flow.velocity_covariances(Z, V, velocity_covs)
-        elif velocity_covs is not None:
-            raise ValueError("velocity_covs needs MultiObjectTracker(..., velocity_update=True)")
-        self.frame += 1
-        kf = self.kf
-        # 1. predict; 2. associate; 3. update
-        if self._flow is None:
-            z_pred, S = self.predictor.predict(kf)
-            matches, unmatched_tracks, unmatched_dets = self.associator.associate(z_pred, S, Z)
-            matches = np.asarray(matches, dtype=np.intp).reshape(-1, 2)
-            unmatched_tracks = np.asarray(unmatched_tracks, dtype=np.intp)
-            unmatched_dets = np.asarray(unmatched_dets, dtype=np.intp)
-            Zj, has_v = Z, np.zeros(Z.shape[0], dtype=bool)
-            if self.confirmer.needs_likelihood:
-                z_pred, S = np.array(z_pred), np.array(S)  # the prior, kept through the update
-            self.updater.update(kf, Z, matches)
-        else:
-            (matches, unmatched_tracks, unmatched_dets), (z_pred, S, Zj, has_v) = \
-                self._flow.predict_associate_update(Z, V, Rv, Rp)
-        # 4. bookkeeping: hits, misses, score, confirmation
-        matched = matches[:, 0]
-        self._hits[matched] += 1
-        self._misses[matched] = 0
-        self._misses[unmatched_tracks] += 1
-        self._age += 1
-        confirmer = self.confirmer
-        if confirmer.needs_likelihood:
-            loglik = pair_log_likelihood(z_pred, S, Zj, matches)  # the prior's predicted density
-            dets = matches[:, 1]
-            pos = {}
-            if getattr(confirmer, "needs_positions", False):
-                anchors = self._anchor_sum / np.maximum(self._anchor_n, 1)[:, None]
-                pos = dict(positions=Z[dets], anchors=anchors, anchor_counts=self._anchor_n,
-                           position_cov=self._R)
-            self._scores = confirmer.update_scores(
-                self._scores, matched, loglik, has_v[dets], unmatched_tracks,
-                velocities=None if V is None else V[dets], velocity_covs=None if Rv is None else Rv[dets],
-                **pos)
-        self._anchor_sum[matched] += Z[matches[:, 1]]
-        self._anchor_n[matched] += 1
-        confirm, reject = confirmer.decide(self._scores, self._hits)
-        self._confirmed |= confirm
-        # where confirmed tracks were detected this frame (no births near them: birth_exclusion_radius)
-        held = np.zeros((0, self.dim))
-        if self.birth_exclusion_radius is not None:
-            held = np.array(self.kf.x)[matched[self._confirmed[matched]], : self.dim]
-        # deletions (occlusions beyond max_misses, tentative tracks that missed or were rejected)
-        dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
-        dead |= reject & ~self._confirmed
-        if dead.any():
-            keep = ~dead
-            kf.keep(keep)
-            (self._ids, self._hits, self._misses, self._age, self._confirmed, self._scores,
-             self._anchor_sum, self._anchor_n) = (
-                a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed,
-                                  self._scores, self._anchor_sum, self._anchor_n)
-            )
-        # births from unassigned detections (a coasting track re-acquires the nearest one first)
-        if unmatched_dets.size:
-            x0, P0 = self.initiator.initiate(Z[unmatched_dets], None if V is None else V[unmatched_dets])
-            if self._flow is not None:
-                x0, P0 = self._flow.birth_states(x0, P0, None if Rv is None else Rv[unmatched_dets])
-            if self.reacquire_radius is not None:
-                back = self._reacquire_at_birth(Z[unmatched_dets], x0, P0)
-                x0, P0, unmatched_dets = x0[~back], P0[~back], unmatched_dets[~back]
-            if len(held) and unmatched_dets.size:
-                d2 = ((Z[unmatched_dets][:, None, : self.dim] - held[None]) ** 2).sum(axis=2)
-                part = (d2 <= self.birth_exclusion_radius**2).any(axis=1)
-                x0, P0, unmatched_dets = x0[~part], P0[~part], unmatched_dets[~part]
-        if unmatched_dets.size:
-            k = unmatched_dets.size
-            kf.append(x0, P0)
-            self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + k)])
-            self._next_id += k
-            self._hits = np.concatenate([self._hits, np.ones(k, dtype=np.int64)])
-            self._misses = np.concatenate([self._misses, np.zeros(k, dtype=np.int64)])
-            self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
-            scores0 = confirmer.initial_scores(k)
-            self._scores = np.concatenate([self._scores, scores0])
-            self._anchor_sum = np.concatenate([self._anchor_sum, Z[unmatched_dets]])
-            self._anchor_n = np.concatenate([self._anchor_n, np.ones(k, dtype=np.int64)])
-            self._confirmed = np.concatenate(
-                [self._confirmed, confirmer.decide(scores0, np.ones(k, dtype=np.int64))[0]])
-        # record and report
-        xs = kf.x.copy()
-        Ps = kf.P.copy()
+    def _record(self) -> list[Track]:
+        """Log this frame's tracks (:meth:`history`, :meth:`trajectories`); return the reported ones."""
+        xs = self.kf.x.copy()
+        Ps = self.kf.P.copy()
         xs.flags.writeable = False
         Ps.flags.writeable = False
         codes = np.where(self._confirmed, np.where(self._misses > 0, 2, 1), 0)
@@ -805,20 +800,8 @@ class MultiObjectTracker:
         [2.0, 4.0, 1.0, 2.0]
         """
         n = positive_int(n, "n")
-        x, P = self._predicted_arrays(n)
+        x, P = self.predictor.predict_ahead(self.kf, n)
         return {tid: (x[i].copy(), P[i].copy()) for i, tid in enumerate(self._ids.tolist())}
-
-    def _predicted_arrays(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """The live tracks' prior ``n`` frames ahead as stacked arrays ``(x (M, n_x), P (M, n_x, n_x))``,
-        rows in the order of :attr:`tracks`; the filter itself is not changed."""
-        if self._flow is not None:  # the flow-aware filter (turn-rate or constant velocity)
-            return self.kf.predicted(n)
-        import copy
-
-        kf = copy.deepcopy(self.kf)
-        for _ in range(n):
-            kf.predict()
-        return kf.x.copy(), kf.P.copy()
 
     def __repr__(self) -> str:
         counts = {s: sum(t.status == s for t in self._snapshot) for s in STATUSES}
@@ -827,134 +810,3 @@ class MultiObjectTracker:
             + ", ".join(f"{k}={v}" for k, v in counts.items())
             + ")"
         )
-
-
-# ----------------------------------------------------------------------------------------------------
-# scene flow inside the tracker (issue 15): velocity measurements, NLLR association, turn-rate model
-# ----------------------------------------------------------------------------------------------------
-class _FlowOptions:
-    """The tracker's flow-aware predict, associate and update (on a ``MotionBatchFilter``)."""
-
-    def __init__(self, trk, R, flow_velocity_var, velocity_update, velocity_cov, p_detect, clutter_density,
-                 velocity_clutter_density, motion_model, q_omega, omega_var, turn_axis):
-        from ._validation import check_psd
-
-        d = trk.dim
-        self.trk = trk
-        self.R = R
-        self.velocity_update = bool(velocity_update)
-        if velocity_cov is None:
-            Rv = float(flow_velocity_var) * np.eye(d)
-        else:
-            Rv = as_array(velocity_cov, "velocity_cov")
-            if Rv.ndim == 0:
-                Rv = positive(float(Rv), "velocity_cov") * np.eye(d)
-            elif Rv.shape != (d, d):
-                raise ValueError(f"velocity_cov must be a number or of shape ({d}, {d}), got {Rv.shape}")
-            check_psd(Rv, "velocity_cov", strict=True)
-        self.Rv = Rv
-        if (p_detect is None) != (clutter_density is None):
-            raise ValueError("p_detect and clutter_density must be given together")
-        self.nllr = p_detect is not None
-        if self.nllr:
-            self.p_detect = probability(p_detect, "p_detect")
-            self.clutter_density = positive(clutter_density, "clutter_density")
-            self.velocity_clutter_density = positive(velocity_clutter_density, "velocity_clutter_density")
-        if motion_model not in ("cv", "turn_rate"):
-            raise ValueError(f"motion_model must be 'cv' or 'turn_rate', got {motion_model!r}")
-        self.motion_model = motion_model
-        self.q_omega = nonnegative(q_omega, "q_omega")
-        self.omega_var = positive(omega_var, "omega_var")
-        self.turn_axis = turn_axis
-
-    def make_filter(self):
-        from .motion import MotionBatchFilter
-
-        t = self.trk
-        return MotionBatchFilter(t.dt, t.q, self.R, t.dim, model=self.motion_model, q_omega=self.q_omega,
-                                 axis=self.turn_axis)
-
-    def velocity_covariances(self, Z, V, velocity_covs):
-        """Per-detection velocity covariance (N, d, d), NaN rows where no velocity is used; or None."""
-        from .motion import check_velocity_covs
-
-        N, d = Z.shape
-        if velocity_covs is not None and V is None:
-            raise ValueError("velocity_covs needs velocities")
-        if V is None:
-            return None
-        Rv = np.broadcast_to(self.Rv, (N, d, d)).copy()
-        if velocity_covs is not None:
-            given = check_velocity_covs(velocity_covs, N, d)
-            ok = np.isfinite(given).all(axis=(1, 2))
-            Rv[ok] = given[ok]
-        Rv[np.isnan(V).any(axis=1)] = np.nan
-        return Rv
-
-    def predict_associate_update(self, Z, V, Rv, Rp=None):
-        from .association import assign, masked_mahalanobis, nllr_cost
-
-        kf = self.trk.kf
-        d = self.trk.dim
-        kf.predict()
-        M, N = len(kf), len(Z)
-        use_v = self.velocity_update and V is not None
-        if use_v:
-            # joint innovation covariances per pair; a detection without a velocity is scored on its
-            # position alone (its velocity components are NaN, which masked_mahalanobis leaves out)
-            _, S, m = kf.joint_innovation(Z, V, Rv, Rp)
-            has_v = m == 2 * d
-            Zj = np.concatenate([Z, np.where(has_v[:, None], V, np.nan)], axis=1)
-            z_pred = kf.x[:, : 2 * d].copy()  # the prior (the update below changes kf.x)
-        else:
-            has_v = np.zeros(N, dtype=bool)
-            Zj = Z
-            z_pred, S = kf.predicted_measurements()
-            if Rp is not None:  # per pair: the track's P with the detection's own covariance
-                S = kf.P[:, None, :d, :d] + Rp[None]
-        if M == 0 or N == 0:
-            matches, ut, ud = assign(np.zeros((M, N)))
-        elif self.nllr:
-            lam = np.where(has_v, self.clutter_density * self.velocity_clutter_density, self.clutter_density)
-            cost = nllr_cost(z_pred, S, Zj, self.p_detect, lam, gate_prob=self.trk.gate_prob)
-            matches, ut, ud = assign(cost, objective="min_cost")
-        else:
-            d2, logdet, dof = masked_mahalanobis(z_pred, S, Zj)
-            gates = np.array([chi2_gate(int(k), self.trk.gate_prob) for k in dof])
-            cost = np.where(d2 <= gates[None, :], d2 + logdet, np.inf)
-            matches, ut, ud = assign(cost)
-        if matches.shape[0]:
-            Zm = np.full((M, d), np.nan)
-            Zm[matches[:, 0]] = Z[matches[:, 1]]
-            mask = np.zeros(M, dtype=bool)
-            mask[matches[:, 0]] = True
-            Rpm = None
-            if Rp is not None:
-                Rpm = np.broadcast_to(kf.R, (M, d, d)).copy()
-                Rpm[matches[:, 0]] = Rp[matches[:, 1]]
-            if use_v:
-                Vm = np.full((M, d), np.nan)
-                Rvm = np.full((M, d, d), np.nan)
-                Vm[matches[:, 0]] = V[matches[:, 1]]
-                Rvm[matches[:, 0]] = Rv[matches[:, 1]]
-                kf.update_joint(Zm, Vm, Rvm, mask, Rpm)
-            else:
-                kf.update_joint(Zm, None, None, mask, Rpm)
-        return (matches, ut, ud), (z_pred, S, Zj, has_v)
-
-    def birth_states(self, x0, P0, Rv):
-        """Extend the initiator's ``[p, v]`` states: velocity covariance = the measured one, yaw rate 0."""
-        d = self.trk.dim
-        if self.velocity_update and Rv is not None:
-            ok = np.isfinite(Rv).all(axis=(1, 2))
-            P0 = P0.copy()
-            P0[ok, d:, d:] = Rv[ok]
-        if self.motion_model == "cv":
-            return x0, P0
-        k, n = x0.shape
-        x1 = np.zeros((k, n + 1))
-        x1[:, :n] = x0
-        P1 = np.zeros((k, n + 1, n + 1))
-        P1[:, :n, :n] = P0
-        P1[:, n, n] = self.omega_var
-        return x1, P1
