@@ -44,8 +44,8 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-from ._validation import as_array, check_psd, cholesky, nonnegative, positive, positive_int, probability
-from .association import (
+from .._validation import as_array, check_psd, cholesky, nonnegative, positive, positive_int, probability
+from ..association import (
     assign,
     chi2_gate,
     greedy_assign,
@@ -53,7 +53,7 @@ from .association import (
     masked_mahalanobis,
     nllr_cost,
 )
-from .kalman import BatchKalmanFilter, constant_velocity_model
+from ..kalman import BatchKalmanFilter, constant_velocity_model
 
 __all__ = [
     "Associator",
@@ -439,7 +439,7 @@ class MotionPredictor:
         self.turn_axis = turn_axis
 
     def new_filter(self, dt: float, q: float, R: np.ndarray, dim: int):
-        from .motion import MotionBatchFilter
+        from ..motion import MotionBatchFilter
 
         return MotionBatchFilter(dt, q, R, dim, model=self.motion_model, q_omega=self.q_omega,
                                  axis=self.turn_axis)
