@@ -42,7 +42,7 @@ from scipy.spatial import cKDTree  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from _results import publish  # noqa: E402
-from flowtrack import sceneflow  # noqa: E402
+from flowtrack import _graph_solver, sceneflow  # noqa: E402
 from flowtrack.sceneflow import (  # noqa: E402
     graph_laplacian,
     graph_scene_flow,
@@ -186,7 +186,7 @@ def section_crossover(sizes, lams, repeat):
         "### 4. CG / CHOLMOD crossover on surface clouds (the condition-bound fallback rule)",
         "",
         f"Solve only (`W` given), best of {repeat}; kappa = Gershgorin bound; limit = "
-        "`sceneflow._cg_kappa_limit(N)`, the rule `solver=\"auto\"` falls back to without CHOLMOD's "
+        "`_graph_solver.cg_kappa_limit(N)`, the rule `solver=\"auto\"` falls back to without CHOLMOD's "
         "column counts (section 5 has the fill-based rule).",
         "",
         "| N | lam | kappa | cg (ms) | cholmod (ms) | faster | fallback picks | limit |",
@@ -198,7 +198,7 @@ def section_crossover(sizes, lams, repeat):
         T = nearest_neighbor_targets(X, Y)
         W = knn_graph(X, k=8)
         dmax = graph_laplacian(W).diagonal().max()
-        limit = sceneflow._cg_kappa_limit(n)
+        limit = _graph_solver.cg_kappa_limit(n)
         for lam in lams:
             kappa = 1 + 2 * lam * dmax / DT**2
             t_cg, t_ch = (solve_time(X, T, W, lam, s, repeat) for s in ("cg", "cholmod"))
@@ -235,7 +235,7 @@ def section_solver_choice(sizes, lams, repeat):
         "symbolic analysis when it runs one. SuperLU is left out (its fill on volumetric clouds takes "
         "minutes). Rel. error = max over columns of ‖V − V_cholmod‖/‖V_cholmod‖ for `auto`.",
         "",
-        f"CHOLMOD column counts available: {sceneflow._cholmod_counts() is not None}; pyamg: "
+        f"CHOLMOD column counts available: {_graph_solver.cholmod_counts() is not None}; pyamg: "
         f"{sceneflow.HAVE_PYAMG}.",
         "",
         "| cloud | N | lam | kappa | " + " | ".join(f"{s} (ms)" for s in solvers)
@@ -273,7 +273,7 @@ def section_solver_choice(sizes, lams, repeat):
                         t, V = best_of(call, 1)
                         times[solver] = min(t, times.get(solver, np.inf))
                         flows[solver] = V
-                t_decide, (picks, _) = best_of(lambda A=A, kappa=kappa: sceneflow._auto_choice(A, kappa),
+                t_decide, (picks, _) = best_of(lambda A=A, kappa=kappa: _graph_solver.auto_choice(A, kappa),
                                                repeat)
                 fastest = min(solvers, key=times.get)
                 ratio = times["auto"] / times[fastest]
@@ -300,7 +300,7 @@ def section_solver_choice(sizes, lams, repeat):
         + ("" if worst <= 1.5 else "the timed `auto` call is NOT within 1.5x in every row") + "). "
         "The machine is shared (load ~10 on 2 cores): `auto` and the solver it picks run the same code "
         "once the decision is made, so the difference between the two readings is timing noise; "
-        "`decision` is `sceneflow._auto_choice` alone (the symbolic analysis when it runs one); for a "
+        "`decision` is `_graph_solver.auto_choice` alone (the symbolic analysis when it runs one); for a "
         "CHOLMOD pick the second reading is the timed `auto` call, whose analysis the factorisation reuses.",
     ]
     return out, worst

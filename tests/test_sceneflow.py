@@ -14,7 +14,7 @@ import scipy.sparse.linalg as spla
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from flowtrack import sceneflow
+from flowtrack import _graph_solver, sceneflow
 from flowtrack.sceneflow import (
     check_affinity,
     graph_laplacian,
@@ -211,7 +211,7 @@ def test_amg_preconditioner_is_symmetric_positive_definite_and_cuts_iterations()
     n = 800
     X = rng.uniform(size=(n, 3))
     A, _ = sceneflow._graph_system(n, knn_graph(X, k=8), 0.1, 1.0)
-    M = sceneflow._amg_preconditioner(A)
+    M = _graph_solver.amg_preconditioner(A)
     Minv = M(np.eye(n))
     np.testing.assert_allclose(Minv, Minv.T, atol=1e-10 * np.abs(Minv).max())
     assert np.linalg.eigvalsh((Minv + Minv.T) / 2).min() > 0
@@ -227,7 +227,7 @@ def test_cholmod_column_counts_are_the_factor_nonzeros():
     """Symbolic counts (no numeric work) against the non-zeros of dense and CHOLMOD numeric factors."""
     from sksparse.cholmod import analyze
 
-    counts = sceneflow._cholmod_counts()
+    counts = _graph_solver.cholmod_counts()
     assert counts is not None
     rng = np.random.default_rng(5)
     X = rng.uniform(size=(200, 3))
@@ -261,7 +261,7 @@ def test_auto_sees_the_fill_a_condition_bound_cannot():
     for name, W in (("surface", surface), ("volume", volume)):
         A, kappa = sceneflow._graph_system(W.shape[0], W, 0.1, 1.0)
         assert 800 <= kappa <= 1300
-        picks[name] = sceneflow._auto_choice(A, kappa)[0]
+        picks[name] = _graph_solver.auto_choice(A, kappa)[0]
     assert picks["surface"] == "cholmod"
     assert picks["volume"] in ("cg", "amg")
 
@@ -271,8 +271,8 @@ def test_graph_flow_auto_without_column_counts_or_pyamg(rng, monkeypatch):
     X = rng.uniform(size=(300, 3))
     Y = X + 0.02 * rng.normal(size=(300, 3))
     W = knn_graph(X, k=6)
-    monkeypatch.setattr(sceneflow, "_COUNTS", [None])
-    monkeypatch.setattr(sceneflow, "HAVE_PYAMG", False)
+    monkeypatch.setattr(_graph_solver, "_COUNTS", [None])
+    monkeypatch.setattr(_graph_solver, "HAVE_PYAMG", False)
     for lam in (1e-3, 1.0):
         expected = _sparse_oracle(X, Y, 0.1, lam, W)
         V = graph_scene_flow(X, Y, 0.1, lam, W=W)
@@ -574,8 +574,8 @@ def test_graph_scene_flow_rejects_bad_scalars_property(dt, lam):
 
 def test_graph_flow_without_cholmod(rng, monkeypatch):
     """scikit-sparse is optional: "auto" falls back to CG/SuperLU, "cholmod" then fails clearly."""
-    monkeypatch.setattr(sceneflow, "HAVE_CHOLMOD", False)
-    monkeypatch.setattr(sceneflow, "_cholmod_cholesky", None)
+    monkeypatch.setattr(_graph_solver, "HAVE_CHOLMOD", False)
+    monkeypatch.setattr(_graph_solver, "_cholmod_cholesky", None)
     X = rng.uniform(size=(30, 3))
     Y = X + 0.02 * rng.normal(size=(30, 3))
     for lam in (0.003, 50.0):  # kappa below and above the CG limit

@@ -1108,3 +1108,107 @@ def test_position_covs_are_validated():
         trk.step(np.zeros((1, 2)), position_covs=-np.eye(2)[None])
     with pytest.raises(ValueError, match="position_covs needs"):
         MultiObjectTracker(0.1, 0.01, 1e-4, dim=2).step(np.zeros((1, 2)), position_covs=np.eye(2)[None])
+
+
+# ----------------------------------------------------------------------------- the parts
+def _flowchart_spy(parts, calls):
+    """Wrap each part's methods so that every call is logged as ``(part, method)``."""
+
+    class Spy:
+        def __init__(self, name, inner):
+            self._name, self._inner = name, inner
+
+        def __getattr__(self, attr):
+            value = getattr(self._inner, attr)
+            if not callable(value):
+                return value
+
+            def logged(*args, **kwargs):
+                calls.append((self._name, attr))
+                return value(*args, **kwargs)
+
+            return logged
+
+    return {name: Spy(name, part) for name, part in parts.items()}
+
+
+@pytest.mark.parametrize("options", [{}, {"velocity_update": True, "p_detect": 0.9, "clutter_density": 0.05}])
+def test_one_step_runs_the_flowchart_once_through_the_parts(options):
+    """Position-only and flow-aware trackers take the same path: predict, measurement prediction,
+    association, update, confirmation, deletion, initiation, each once per frame, in that order."""
+    base = MultiObjectTracker(0.1, 1.0, 0.05**2, velocity_var=4.0, **options)
+    calls = []
+    parts = _flowchart_spy({n: getattr(base, n) for n in ("predictor", "updater", "associator", "initiator",
+                                                          "deleter", "confirmer")}, calls)
+    trk = MultiObjectTracker(0.1, 1.0, 0.05**2, velocity_var=4.0, **options, **parts)
+    _, frames, _, _ = make_disturbed_scene(np.random.default_rng(1), n_frames=12)
+    for Z in frames:
+        calls.clear()
+        trk.step(Z, np.zeros_like(Z))
+        base.step(Z, np.zeros_like(Z))
+        _same_tracks(trk.tracks, base.tracks, atol=0.0)
+        flow = [c for c in calls if c[1] != "initial_scores"]
+        assert flow[:5] == [("updater", "check"), ("predictor", "predict"),
+                            ("updater", "predict_measurements"), ("associator", "associate"),
+                            ("updater", "update")]
+        assert flow[5:7] == [("confirmer", "decide"), ("deleter", "delete")]
+        assert flow[7:] in ([], [("initiator", "initiate"), ("confirmer", "decide")])
+
+
+def test_parts_satisfy_their_protocols_and_the_flow_options_choose_them():
+    from flowtrack.tracking import (
+        Associator,
+        Confirmer,
+        Deleter,
+        FlowOptions,
+        FlowUpdater,
+        Initiator,
+        KalmanPredictor,
+        KalmanUpdater,
+        MaskedGNNAssociator,
+        MotionPredictor,
+        NLLRAssociator,
+        Predictor,
+        SingleDetectionInitiator,
+        Updater,
+    )
+
+    plain = MultiObjectTracker(0.1, 1.0, 0.01)
+    flow = MultiObjectTracker(0.1, 1.0, 0.01, velocity_update=True, p_detect=0.9, clutter_density=1.0)
+    for trk in (plain, flow):
+        for name, protocol in (("predictor", Predictor), ("updater", Updater), ("associator", Associator),
+                               ("initiator", Initiator), ("deleter", Deleter), ("confirmer", Confirmer)):
+            assert isinstance(getattr(trk, name), protocol), name
+    assert [type(p) for p in (plain.predictor, plain.updater, plain.associator)] == [
+        KalmanPredictor, KalmanUpdater, GNNAssociator]
+    assert [type(p) for p in (flow.predictor, flow.updater, flow.associator)] == [
+        MotionPredictor, FlowUpdater, NLLRAssociator]
+    assert not isinstance(object(), Updater)
+    # the options as one object, or the same parts given one by one: the same tracker
+    opts = FlowOptions(velocity_update=True, velocity_cov=0.05**2)
+    trackers = [
+        MultiObjectTracker(0.1, 1.0, 0.05**2, velocity_var=4.0, velocity_update=True, velocity_cov=0.05**2),
+        MultiObjectTracker(0.1, 1.0, 0.05**2, velocity_var=4.0, flow=opts),
+        MultiObjectTracker(0.1, 1.0, 0.05**2, velocity_var=4.0, predictor=MotionPredictor(),
+                           updater=FlowUpdater(2, 0.05**2), associator=MaskedGNNAssociator(0.99),
+                           initiator=SingleDetectionInitiator(0.05**2 * np.eye(2), 4.0, 0.05**2 / 0.01)),
+    ]
+    r = np.random.default_rng(2)
+    _, frames, _, _ = make_disturbed_scene(r, n_frames=15)
+    for Z in frames:
+        V = r.normal(size=Z.shape)
+        for trk in trackers:
+            trk.step(Z, V)
+        for trk in trackers[1:]:
+            _same_tracks(trk.tracks, trackers[0].tracks, atol=0.0)
+    with pytest.raises(ValueError, match="not both"):
+        MultiObjectTracker(0.1, 1.0, 0.01, flow=opts, p_detect=0.9)
+
+
+def test_the_initiator_must_start_the_predictors_states():
+    from flowtrack.tracking import MotionPredictor
+
+    with pytest.raises(ValueError, match="initiator"):
+        MultiObjectTracker(0.1, 1.0, 0.01, predictor=MotionPredictor("turn_rate"))
+    trk = MultiObjectTracker(0.1, 1.0, 0.01, motion_model="turn_rate")  # the options match them
+    assert trk.step(np.zeros((1, 2))) == [] and trk.tracks[0].x.shape == (5,)

@@ -20,6 +20,7 @@ The reference implementation of the flowtrack course. Modules:
   MOT15 TUD-Campus).
 - :mod:`flowtrack.symbolic` – the sympy derivations, one module per lesson.
 - :mod:`flowtrack.rgbd_io` – RGB-D sequences from disk (TUM layout) and stereo pairs.
+- :mod:`flowtrack.validation` – the scalar validators, for code built on the library.
 
 Submodules are imported lazily so that ``import flowtrack`` stays cheap. The course's tooling
 (grading, port harnesses, book, widgets, demo app, ``flowtrack`` command) lives in the sibling
@@ -53,6 +54,7 @@ _SUBMODULES = {
     "datasets",
     "rgbd_io",
     "symbolic",
+    "validation",
 }
 
 __all__ = [*sorted(_SUBMODULES), "__version__"]

@@ -15,6 +15,7 @@ import numpy as np
 
 __all__ = [
     "as_array",
+    "scalar",
     "positive",
     "nonnegative",
     "positive_int",
@@ -104,7 +105,12 @@ def as_array(
     return arr
 
 
-def _scalar(value, name: str) -> float:
+def scalar(value, name: str) -> float:
+    """Return ``value`` as float, raising unless it is a finite real number.
+
+    ``TypeError`` (naming ``name``) for anything but a real number or a 0-d numeric array (bools
+    included), ``ValueError`` for NaN or inf.
+    """
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
         if isinstance(value, np.ndarray) and value.ndim == 0 and np.issubdtype(value.dtype, np.number):
             value = value.item()
@@ -118,7 +124,7 @@ def _scalar(value, name: str) -> float:
 
 def positive(value, name: str) -> float:
     """Return ``value`` as float, raising ``ValueError`` unless it is finite and > 0."""
-    v = _scalar(value, name)
+    v = scalar(value, name)
     if v <= 0:
         raise ValueError(f"{name} must be > 0, got {v}")
     return v
@@ -126,7 +132,7 @@ def positive(value, name: str) -> float:
 
 def nonnegative(value, name: str) -> float:
     """Return ``value`` as float, raising ``ValueError`` unless it is finite and >= 0."""
-    v = _scalar(value, name)
+    v = scalar(value, name)
     if v < 0:
         raise ValueError(f"{name} must be >= 0, got {v}")
     return v
@@ -148,7 +154,7 @@ def probability(value, name: str) -> float:
     ``TypeError`` for a non-real value (bools included), ``ValueError`` for NaN, inf or a value
     outside the open interval.
     """
-    p = _scalar(value, name)
+    p = scalar(value, name)
     if not 0.0 < p < 1.0:
         raise ValueError(f"{name} must satisfy 0 < {name} < 1, got {p}")
     return p

@@ -379,7 +379,7 @@ def _min_cost_unchecked(cost: np.ndarray, gate: float):
 
 
 # ----------------------------------------------------------------------------------------------------
-# one association objective: the negative log-likelihood ratio (issue 15)
+# one association objective for every tracker: the negative log-likelihood ratio against clutter
 # ----------------------------------------------------------------------------------------------------
 def masked_mahalanobis(z_pred, S, Z):
     r"""Squared Mahalanobis distances over the measured components of each detection.

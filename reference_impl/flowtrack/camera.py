@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import _scalar, as_array, positive
+from ._validation import as_array, positive, scalar
 
 __all__ = [
     "PinholeCamera",
@@ -343,7 +343,7 @@ def depth_from_disparity(disparity, focal_px: float, baseline: float, doffs: flo
     d = as_array(disparity, "disparity", finite=False, copy=False)
     f = positive(focal_px, "focal_px")
     B = positive(baseline, "baseline")
-    doffs = _scalar(doffs, "doffs")
+    doffs = scalar(doffs, "doffs")
     dd = d + doffs
     valid = np.isfinite(dd) & (dd > 0)
     Z = np.zeros(dd.shape)

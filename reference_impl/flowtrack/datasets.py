@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ._graph import apply_transform
-from ._validation import _scalar, nonnegative, positive, positive_int
+from ._validation import nonnegative, positive, positive_int, scalar
 from .camera import PinholeCamera, backproject_pixels, depth_from_disparity
 
 __all__ = [
@@ -229,7 +229,7 @@ def motorcycle_flow_case(
         raise ValueError(f"keep must be in (0, 1], got {keep}")
     global_angle = nonnegative(global_angle, "global_angle")
     global_translation = nonnegative(global_translation, "global_translation")
-    part_angle = _scalar(part_angle, "part_angle")
+    part_angle = scalar(part_angle, "part_angle")
     rng = np.random.default_rng(seed)
 
     X, colors, pix = motorcycle_cloud(step=step, return_pixels=True)

@@ -1,6 +1,6 @@
 r"""Rigid motion from scene flow, and a track model that extrapolates it (syllabus sections 5 and 7).
 
-Scene flow enters the tracker twice (issue 15):
+Scene flow enters the tracker twice:
 
 1. **Per cluster, a rigid motion.** A cluster's points :math:`X_i` and their flow :math:`v_i` give the
    displaced points :math:`Y_i = X_i + v_i\,\Delta t`; the rigid motion :math:`(R, t)` with

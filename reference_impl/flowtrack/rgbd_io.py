@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validation import _scalar, positive, positive_int
+from ._validation import positive, positive_int, scalar
 from .camera import PinholeCamera, depth_from_disparity
 
 __all__ = [
@@ -591,7 +591,7 @@ def load_stereo_sequence(
         raise ValueError("baseline missing: a stereo input needs the baseline in metres (--baseline)")
     baseline = positive(baseline, "baseline")
     disparity_scale = positive(disparity_scale, "disparity_scale")
-    doffs = _scalar(doffs, "doffs")
+    doffs = scalar(doffs, "doffs")
     dt = positive(dt, "dt")
     _require_dir(root / "left", "left/ folder of")
     _require_dir(root / "disparity", "disparity/ folder of")

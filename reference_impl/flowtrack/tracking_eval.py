@@ -1,4 +1,4 @@
-r"""Scoring a tracker run, and the position-only vs flow-aided ablation (issue 15).
+r"""Scoring a tracker run, and the position-only vs flow-aided ablation.
 
 :func:`run_tracker` feeds per-frame detections (optionally with velocities and their covariances)
 to a :class:`~flowtrack.tracking.MultiObjectTracker` and records, per frame, the reported positions

@@ -1,4 +1,4 @@
-r"""Tracks you can export: ``tracks.csv`` from a tracker's per-frame output (issue 15).
+r"""Tracks you can export: ``tracks.csv`` from a tracker's per-frame output.
 
 One row per live track per frame, tentative and coasting tracks included, columns exactly
 

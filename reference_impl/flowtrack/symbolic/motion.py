@@ -1,7 +1,5 @@
 r"""sympy derivation of the turn-rate (coordinated-turn) track model of :mod:`flowtrack.motion`.
 
-(To be moved into the :mod:`flowtrack.symbolic` package; issue 15.)
-
 From first principles: a body moving in the plane :math:`z` = const whose velocity turns at the
 constant rate :math:`\omega` obeys :math:`\dot v = \omega K v`, :math:`K = [e_z]_\times`, so
 :math:`v(s) = e^{\omega s K} v_0` (the matrix exponential, computed by sympy) and

@@ -1,0 +1,225 @@
+r"""The pipeline's settings and the rules derived from them (part of :mod:`flowtrack.pipeline`).
+
+- :class:`PipelineConfig` holds every threshold of the frames → tracks pipeline in metres and
+  seconds. They were set on 10 Hz input; the flow interval below keeps them meaning the same at any
+  frame rate.
+- :func:`track_confirmer` turns ``PipelineConfig.confirmation`` into the tracker's confirmation part:
+  Wald's sequential test on the track score, whose clutter hypothesis takes the velocity of static
+  clutter as :math:`\mathcal N(0, (s/2)^2 I)` with :math:`s` = ``rgbd_min_speed``, or ``min_hits``
+  detections.
+- :func:`flow_step` and :func:`flow_partners` choose the frame each frame's scene flow is measured
+  against: :math:`k = \max(1, \operatorname{round}(\text{flow\_interval} / \Delta t))` frames on (the
+  last :math:`k` frames backwards), so that a pair spans at least ``flow_interval`` seconds.
+
+Import these names from :mod:`flowtrack.pipeline`, which exports (and documents) them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .._validation import positive, positive_int
+
+__all__ = ["PipelineConfig", "flow_partners", "flow_step", "track_confirmer"]
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """Tuning of the pipeline (metres, seconds)."""
+
+    lam: float = 1.0  #: graph smoothness weight
+    k: int = 8  #: neighbours of the kNN graph
+    rematch_iterations: int = 5  #: passes of graph flow with re-matched correspondences
+    cluster_radius: float = 0.03  #: spatial radius of the motion graph
+    sigma_v: float = 0.05  #: motion-similarity scale (m/s)
+    min_speed: float = 0.02  #: slower points are static background (m/s)
+    min_cluster_points: int = 50  #: smaller motion clusters are flow noise, sent to the background
+    icp_threshold: float = 0.02  #: ICP correspondence distance (m)
+    max_points: int = 30000  #: random subsample of each cloud, for speed
+    track_q: float = 0.1  #: acceleration variance of the tracker's constant-velocity model ((m/s²)²)
+    track_r: float = 1e-4  #: detection (cluster centroid) variance (m²): 1 cm standard deviation
+    min_hits: int = 2  #: detections that confirm a track
+    #: frames a confirmed track may coast through an occlusion. The demo's scenes hide an object for up
+    #: to 9 frames (the occlusion scenario's object 1 behind the static box, 0.9 s at 10 Hz); 12 keeps its
+    #: track and id through that with a margin. A coasting track's position standard deviation after k
+    #: frames grows like sqrt(q (k dt)^3 / 3): 16 cm after 9 frames, 24 cm after 12 with the defaults.
+    max_misses: int = 12
+    plane_threshold: float = 0.006  #: RANSAC inlier distance of the support planes (table, walls), m
+    max_planes: int = 2  #: support planes removed before detection (each >= plane_min_share of the cloud)
+    plane_min_share: float = 0.08
+    min_detection_points: int = 30  #: smaller pieces of a cluster off the planes are not detections
+    gate_prob: float = 0.99  #: tracker's chi-square gate probability
+    voxel: float = 0.01  #: voxel size for real clouds (open3d), 0 = off
+    max_depth: float = 4.0  #: real input: farther points are dropped (m)
+    #: motion clustering of a given (RGB-D) flow: slower points are static. The dense RGB-D flow is
+    #: noisier on static surfaces than graph smoothing (median about 1 mm per frame, one point in eight
+    #: above 2 mm at 10 Hz on the demo's scene), so its threshold is higher than ``min_speed``.
+    rgbd_min_speed: float = 0.04
+    rgbd_sigma_v: float = 0.02  #: motion-similarity scale of the clustering of a given flow (m/s)
+    #: floor of a detection's velocity standard deviation per axis (m/s) in the tracker's velocity update
+    #: (:func:`flowtrack.motion.detection_velocity_covariances`' ``min_std``). The flow residuals of a
+    #: cluster measure its noise, not the estimator's error shared by the whole object (smoothing over
+    #: its outline, a visible surface whose centroid slides under occlusion): the RGB-D flow's
+    #: moving-point EPE3D is about 2.7 mm per frame (0.027 m/s) on the demo's scene.
+    velocity_min_std: float = 0.02
+    #: radius (m) within which a depth pixel takes the label of its nearest cloud point (or flow-warped
+    #: cloud point) in :func:`visible_centroid_velocities`; about twice the subsampled cloud's spacing
+    centroid_radius: float = 0.01
+    #: inflation k of a detection's velocity covariance by the visible-extent change,
+    #: ``C + k (u - v)(u - v)^T`` (:func:`visible_centroid_velocities`): k = 4 treats the gap between
+    #: the visible centroid's velocity u and the material flow v as a two-standard-deviation error
+    extent_change_inflation: float = 4.0
+    #: how a tentative track is confirmed: ``"score"`` by its sequential log-likelihood-ratio score
+    #: (:class:`flowtrack.tracking.SequentialScoreConfirmer`, :func:`track_confirmer`), ``"hits"`` by
+    #: ``min_hits`` detections (:class:`flowtrack.tracking.HitCountConfirmer`)
+    confirmation: str = "score"
+    track_p_detect: float = 0.9  #: detection probability P_D of the track score
+    #: clutter (false detection) density of the track score, per m³: about one false detection per
+    #: frame in the ~1 m³ the camera sees of the table
+    track_clutter_density: float = 1.0
+    #: Wald's alpha: probability that a clutter sequence is confirmed (per tentative track)
+    track_false_confirm: float = 1e-4
+    track_missed_confirm: float = 0.1  #: Wald's beta: probability that an object's sequence is rejected
+    #: standard deviation (m) of a static artefact's position jitter beyond ``track_r``: with a number, the
+    #: score's clutter hypothesis also holds "a static artefact at a fixed place" (depth-edge artefacts
+    #: detected at the same place frame after frame; :class:`flowtrack.tracking.SequentialScoreConfirmer`'s
+    #: ``static_position_cov``); None: uniform clutter only. Off by default: on Kinect-like TUM-layout
+    #: scenes 0.01 removes the static-artefact tracks (mixed seed 0: MOTA 0.667 -> 0.739, false positives
+    #: 8 -> 0) but confirms objects that re-appear after an occlusion later (occlusion seed 0: 0.725 ->
+    #: 0.652), and position-only tracks (no velocity evidence) hardly confirm at all
+    track_static_position_std: float | None = None
+    #: shortest time (s) over which scene flow is measured. The thresholds above were set on 10 Hz
+    #: input, where an object moves a few mm per frame pair; a 30 Hz sensor (the TUM sequences) moves it a
+    #: third as far while the flow's noise per pair stays about 1 mm, so static surfaces cross
+    #: ``rgbd_min_speed`` and objects break up. Input faster than ``1 / flow_interval`` pairs every frame
+    #: with the frame ``k = round(flow_interval / dt)`` on (:func:`flow_partners`) and coasts tracks for
+    #: ``max_misses * k`` frames, so the same thresholds hold in m/s and seconds at any frame rate
+    flow_interval: float = 0.1
+    #: let colour decide where geometry cannot tell a piece's motion from standing still
+    #: (:func:`detection_pieces`' ``images``): a turning box sweeps its faces over themselves and a box
+    #: sliding along its own face stays on that plane, so geometry calls them static; their texture
+    #: (or shading) moves. It also keeps the far, slow object of the synthetic crossing scene while the
+    #: near one cuts it; that piece's centroid is off the object's, which ``occlusion_position_scale``
+    #: accounts for (without it the flow-aided tracker switched identities twice on crossing seed 0)
+    colour_check: bool = True
+    #: re-acquisition radius (m) of the tracker (:class:`flowtrack.tracking.MultiObjectTracker`'s
+    #: ``reacquire_radius``): a track confirmed within this distance of a coasting one is that object
+    #: back from an occlusion. An object being hidden shows a shrinking visible surface whose centroid
+    #: slides, so its track may coast off its path and miss the object's return; 0.15 m is about a
+    #: tabletop object's size. None: off
+    track_reacquire_radius: float | None = None
+    #: no track starts from a detection this close (m) to a confirmed track detected in the same frame
+    #: (:class:`flowtrack.tracking.MultiObjectTracker`'s ``birth_exclusion_radius``): a second piece of
+    #: an object (cut by an occluder, or a face that moves differently) must not become a second track.
+    #: 5 cm: two tabletop objects' visible centroids are farther apart than that. (0.15 m, an object's
+    #: size, also removed the small objects of the synthetic occlusion scenes passing near others:
+    #: MOTA 0.889 -> 0.733.) None: off
+    track_birth_exclusion_radius: float | None = 0.05
+    #: two pieces are one rigid object (:func:`detection_pieces`' ``rigid_merge`` and ``occluders``) when the
+    #: rigid motion fitted to both adds at most this residual (m/s, in quadrature) to their own fits; two
+    #: pieces of equal size that move differently add about half their relative speed
+    rigid_merge_tolerance: float = 0.015
+    #: pieces split by a nearer occluder (:func:`detection_pieces`' ``occluders``) are merged when they are
+    #: one rigid object, their closest points are at most this far apart (m), ...
+    occlusion_max_gap: float = 0.25
+    #: ... and the surface between them is nearer by more than this (m); also how much nearer a surface
+    #: must be to hide a point in the colour test and to cut a piece in occlusion_position_covariances
+    occlusion_margin: float = 0.02
+    #: a detection cut by a nearer surface (:func:`occlusion_position_covariances`) has its position
+    #: variance widened toward that surface by (this × its visible extent there)²: the hidden part is
+    #: unknown, and one as large as the visible one moves the centroid by half the extent. None: off
+    occlusion_position_scale: float | None = 0.5
+
+
+def track_confirmer(cfg: PipelineConfig):
+    r"""The tracker's confirmation part for ``cfg.confirmation`` (``"score"`` or ``"hits"``).
+
+    ``"score"``: :class:`flowtrack.tracking.SequentialScoreConfirmer` with :math:`P_D` =
+    ``track_p_detect``, :math:`\lambda_c` = ``track_clutter_density``, :math:`\alpha` =
+    ``track_false_confirm``, :math:`\beta` = ``track_missed_confirm`` and static clutter's velocity
+    covariance :math:`\Sigma_c = (s/2)^2 I` with :math:`s` = ``rgbd_min_speed``: the motion
+    clustering keeps points faster than :math:`s`, about two standard deviations of the flow noise
+    on static surfaces, so the clutter it lets through (depth-edge artefacts, flying pixels) moves
+    at :math:`\mathcal N(0, (s/2)^2 I)` plus its own measurement noise; with
+    ``track_static_position_std`` :math:`\sigma_s`, a static artefact at a fixed place is part of the
+    clutter hypothesis too (``static_position_cov`` :math:`= \sigma_s^2 I`). ``"hits"``:
+    :class:`flowtrack.tracking.HitCountConfirmer` ``(min_hits)``.
+
+    Examples
+    --------
+    >>> c = track_confirmer(PipelineConfig())
+    >>> type(c).__name__, round(c.confirm_threshold, 2), c.clutter_velocity_cov, c.static_position_cov
+    ('SequentialScoreConfirmer', 9.1, 0.0004, None)
+    >>> track_confirmer(PipelineConfig(track_static_position_std=0.01)).static_position_cov
+    0.0001
+    >>> type(track_confirmer(PipelineConfig(confirmation="hits"))).__name__
+    'HitCountConfirmer'
+    """
+    from ..tracking import HitCountConfirmer, SequentialScoreConfirmer
+
+    if cfg.confirmation == "hits":
+        return HitCountConfirmer(cfg.min_hits)
+    if cfg.confirmation != "score":
+        raise ValueError(f"confirmation must be 'score' or 'hits', got {cfg.confirmation!r}")
+    return SequentialScoreConfirmer(cfg.track_p_detect, cfg.track_clutter_density,
+                                    false_confirm=cfg.track_false_confirm,
+                                    missed_confirm=cfg.track_missed_confirm,
+                                    clutter_velocity_cov=(cfg.rgbd_min_speed / 2.0) ** 2,
+                                    static_position_cov=None if cfg.track_static_position_std is None
+                                    else cfg.track_static_position_std ** 2)
+
+
+def flow_step(dt: float, interval: float = 0.1) -> int:
+    r"""Frames between the two frames of a flow pair: :math:`k = \max(1, \operatorname{round}(\text{interval}
+    / \Delta t))` (:func:`flow_partners`; the demo also coasts tracks ``max_misses`` times this).
+
+    >>> flow_step(0.1), flow_step(1 / 30), flow_step(0.5)
+    (1, 3, 1)
+    """
+    return max(1, round(positive(interval, "interval") / positive(dt, "dt")))
+
+
+def flow_partners(n: int, dt: float, interval: float = 0.1) -> list[int]:
+    r"""The frame each of ``n`` frames is paired with for scene flow, at least ``interval`` apart in time.
+
+    With :math:`k = \max(1, \operatorname{round}(\text{interval} / \Delta t))`, frame t is paired with
+    t + k while that exists, and the last k frames with t − k (the flow of that pair, negated, is the
+    velocity at t: every frame gets detections, the last one included). In a sequence shorter than
+    2k frames a frame with neither is paired with its farthest frame. The velocity of a pair is the
+    mean over its interval, :math:`(X_{t+k} - X_t) / (k\,\Delta t)`: its noise falls like 1/k and a constant
+    velocity is unchanged.
+
+    Parameters
+    ----------
+    n : int, >= 2
+        Frames.
+    dt : float, > 0
+        Frame interval (s).
+    interval : float, > 0
+        Shortest flow interval (s), :attr:`PipelineConfig.flow_interval`.
+
+    Returns
+    -------
+    list of int
+        Partner of each frame; ``partner[t] - t`` is the signed pair length in frames.
+
+    Examples
+    --------
+    >>> flow_partners(5, dt=0.1)                  # 10 Hz: the next frame, the last one backwards
+    [1, 2, 3, 4, 3]
+    >>> flow_partners(8, dt=1 / 30)               # 30 Hz: three frames on
+    [3, 4, 5, 6, 7, 2, 3, 4]
+    >>> flow_partners(3, dt=1 / 30)               # too short for k = 3
+    [2, 2, 0]
+    """
+    n = positive_int(n, "n", minimum=2)
+    k = flow_step(dt, interval)
+    out = []
+    for t in range(n):
+        if t + k <= n - 1:
+            out.append(t + k)
+        elif t - k >= 0:
+            out.append(t - k)
+        else:
+            out.append(n - 1 if n - 1 - t >= t else 0)
+    return out
