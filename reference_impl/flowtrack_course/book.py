@@ -48,7 +48,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from flowtrack._validation import positive, positive_int
+from flowtrack.validation import positive, positive_int
 
 from . import course as _course
 

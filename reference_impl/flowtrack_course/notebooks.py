@@ -19,7 +19,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from flowtrack._validation import positive
+from flowtrack.validation import positive
 
 __all__ = [
     "NotebookExecutionError",

@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from flowtrack._validation import _scalar
+from flowtrack.validation import scalar
 
 __all__ = ["Choice", "InteractiveResult", "Slider", "interactive_or_static", "widget_frontend_available"]
 
@@ -99,21 +99,21 @@ class Slider:
     integer: bool = False
 
     def __post_init__(self):
-        lo, hi = _scalar(self.min, "min"), _scalar(self.max, "max")
-        v = _scalar(self.value, "value")
+        lo, hi = scalar(self.min, "min"), scalar(self.max, "max")
+        v = scalar(self.value, "value")
         if not lo < hi:
             raise ValueError(f"min must be < max, got min={lo}, max={hi}")
         if not lo <= v <= hi:
             raise ValueError(f"value must be in [min, max] = [{lo}, {hi}], got {v}")
         if self.log and lo <= 0:
             raise ValueError(f"min must be > 0 for a log slider, got {lo}")
-        if self.step is not None and _scalar(self.step, "step") <= 0:
+        if self.step is not None and scalar(self.step, "step") <= 0:
             raise ValueError(f"step must be > 0, got {self.step}")
         static = (lo, v, hi) if self.static is None else tuple(self.static)
         if len(static) == 0:
             raise ValueError("static must hold at least one value")
         for s in static:
-            s = _scalar(s, "static values")
+            s = scalar(s, "static values")
             if not lo <= s <= hi:
                 raise ValueError(f"static values must be in [min, max] = [{lo}, {hi}], got {s}")
         if self.integer:

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from flowtrack._validation import positive_int
 from flowtrack.motion import detection_velocity_covariances
 from flowtrack.pipeline import (
     METHODS,
@@ -28,6 +27,7 @@ from flowtrack.pipeline import (
 )
 from flowtrack.sceneflow import scene_flow_metrics
 from flowtrack.tracking_io import write_tracks_csv
+from flowtrack.validation import positive_int
 
 from ..report import render_markdown, write_report
 from .config import DEFAULT_NOISE, DemoConfig
