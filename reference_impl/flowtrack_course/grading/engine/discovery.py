@@ -52,11 +52,12 @@ class ExerciseSet:
     """
 
     def __init__(self, root: Path, exercises: tuple[Exercise, ...], folders: dict[str, Path],
-                 catalogue: Catalogue) -> None:
+                 catalogue: Catalogue, modules: dict[str, types.ModuleType]) -> None:
         self.root = root
         self.exercises = exercises
         self.catalogue = catalogue
         self._folders = folders
+        self._modules = modules
 
     def __iter__(self) -> Iterator[Exercise]:
         return iter(self.exercises)
@@ -70,6 +71,10 @@ class ExerciseSet:
     def folder(self, exercise_id: str) -> Path:
         """The exercise's folder ``<course>/exercises/<id>``."""
         return self._folders[exercise_id]
+
+    def module(self, exercise_id: str) -> types.ModuleType:
+        """The exercise's grading module (its helpers: reference computations, input generators)."""
+        return self._modules[exercise_id]
 
     def source_notebook(self, exercise: Exercise) -> Path:
         """The instructor's notebook of ``exercise``: ``exercises/<id>/<notebook's file name>``."""
@@ -167,8 +172,11 @@ def discover(root: str | os.PathLike) -> ExerciseSet:
 def _load(root: Path, folders: list[Path], signature: str) -> ExerciseSet:
     tag = hashlib.sha256(f"{root}\0{signature}".encode()).hexdigest()[:12]
     exercises: list[Exercise] = []
+    modules: dict[str, types.ModuleType] = {}
     for folder in folders:
-        ex = _load_module(folder, f"_course_exercises_{tag}").__dict__.get("EXERCISE")
+        module = _load_module(folder, f"_course_exercises_{tag}")
+        modules[folder.name] = module
+        ex = module.__dict__.get("EXERCISE")
         if not isinstance(ex, Exercise):
             raise ValueError(f"{folder / GRADING_MODULE} must define EXERCISE, an Exercise")
         if ex.id != folder.name:
@@ -176,7 +184,8 @@ def _load(root: Path, folders: list[Path], signature: str) -> ExerciseSet:
         exercises.append(dataclasses.replace(ex, mistakes=tuple(m.of(ex.id) for m in ex.mistakes)))
     catalogue = Catalogue(m for ex in exercises for m in ex.mistakes)
     exercises = [dataclasses.replace(ex, catalogue=catalogue) for ex in exercises]
-    return ExerciseSet(root, tuple(exercises), {ex.id: f for ex, f in zip(exercises, folders)}, catalogue)
+    folder_of = {ex.id: f for ex, f in zip(exercises, folders)}
+    return ExerciseSet(root, tuple(exercises), folder_of, catalogue, modules)
 
 
 def _load_module(folder: Path, namespace: str) -> types.ModuleType:

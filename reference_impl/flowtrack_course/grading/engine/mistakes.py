@@ -19,7 +19,7 @@ True
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -78,8 +78,8 @@ GENERIC = tuple(m.of("*") for m in [
 ])
 
 
-class Catalogue:
-    """The messages of a set of mistakes by id (the generic ones always included).
+class Catalogue(Mapping[str, Mistake]):
+    """The mistakes of a course by id (the generic ones always included): a read-only mapping.
 
     Raises
     ------
@@ -99,11 +99,8 @@ class Catalogue:
             if old is None:
                 self._by_id[m.id] = m
 
-    def __contains__(self, mistake_id: object) -> bool:
-        return mistake_id in self._by_id
-
-    def __iter__(self) -> Iterator[Mistake]:
-        return iter(self._by_id.values())
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._by_id)
 
     def __len__(self) -> int:
         return len(self._by_id)
