@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import ClassVar
 
 from flowtrack_course.grading.engine.discovery import discover
+from flowtrack_course.grading.engine.jobs import ClassJob, GradingOptions, StudentJob
 from flowtrack_course.grading.engine.spec import Outcome
 from flowtrack_course.grading.sources import course_catalog
 from grading_sandbox.testing import SANDBOX_MODES, use_sandbox_mode
@@ -28,6 +29,9 @@ __all__ = [
     "answer_sources",
     "cases",
     "catalog",
+    "class_job",
+    "run_grade_with",
+    "student_job",
     "exercise_module",
     "get_exercise",
     "replace_solution",
@@ -114,6 +118,47 @@ def answer(solution: dict[str, str], edits: dict) -> dict[str, str]:
         for op in ops if isinstance(ops, list) else [ops]:
             src[gid] = _apply(src[gid], op)
     return src
+
+
+_JOB = ("exercises", "jobs", "progress", "allow_unsafe_sandbox", "renamed", "log", "catalog")
+
+
+def _split(kwargs: dict) -> tuple[dict, GradingOptions]:
+    job = {k: kwargs.pop(k) for k in _JOB if k in kwargs}
+    if "hidden_paths" in kwargs:
+        kwargs["hidden_paths"] = tuple(str(p) for p in kwargs["hidden_paths"])
+    return job, GradingOptions(**kwargs)
+
+
+def class_job(submissions, out, **kwargs) -> ClassJob:
+    """A :class:`ClassJob` of this course from keywords (tests' shorthand): those of the job
+    (``exercises``, ``jobs``, ``progress`` (default False), ...) and those of its
+    :class:`GradingOptions` (``secret``, ``force``, ``sandbox_factory``, ...)."""
+    kwargs.setdefault("progress", False)
+    job, options = _split(dict(kwargs))
+    job.setdefault("catalog", catalog())
+    if job.get("exercises") is not None:
+        job["exercises"] = tuple(job["exercises"])
+    return ClassJob(Path(submissions), Path(out), options=options, **job)
+
+
+def student_job(student, folder, exercises, out, **kwargs) -> StudentJob:
+    """A :class:`StudentJob` from keywords (``renamed`` and :class:`GradingOptions`' fields)."""
+    renamed = kwargs.pop("renamed", None) or {}
+    if "hidden_paths" in kwargs:
+        kwargs["hidden_paths"] = tuple(str(p) for p in kwargs["hidden_paths"])
+    return StudentJob(student, Path(folder), Path(out), tuple(exercises), GradingOptions(**kwargs),
+                      renamed=renamed)
+
+
+def run_grade_with(submissions, out, **kwargs):
+    """``run_grade`` from keywords: its own (``assignment``, ``accept_renamed``, ``roster``, ``lms``,
+    ``lms_mode``) and :func:`class_job`'s."""
+    from flowtrack_course.grading.grade import run_grade
+
+    names = ("assignment", "accept_renamed", "roster", "lms", "lms_mode")
+    own = {k: kwargs.pop(k) for k in names if k in kwargs}
+    return run_grade(class_job(submissions, out, **kwargs), **own)
 
 
 class StandInSandbox:

@@ -79,6 +79,10 @@ ROOT="${AUTOGRADER_ROOT:-/autograder}"
 PY="${FLOWTRACK_PYTHON:-$ROOT/venv/bin/python}"
 EXERCISES="${FLOWTRACK_EXERCISES:-@EXERCISES@}"  # flowtrack gradescope --exercises (empty: all)
 RESULTS="$ROOT/results/results.json"
+# the exercises' grading modules: the zip's course/ (Gradescope unpacks the zip into $ROOT/source and
+# runs a copy of this script; tried elsewhere, the folder next to this script)
+COURSE="$ROOT/source/course"
+[ -d "$COURSE" ] || COURSE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)/course"
 mkdir -p "$ROOT/results"
 rm -f "$RESULTS"
 # Only the grader (root) may read or write these; the student's code runs as another uid.
@@ -92,7 +96,7 @@ if [ -f "$ROOT/source/secret" ]; then  # the instructor's seed key (flowtrack gr
 fi
 ERR="$(mktemp)"
 "$PY" -m flowtrack_course.grading.grade.gradescope run \
-    --course "$ROOT/source/course" \
+    --course "$COURSE" \
     --submission "$ROOT/submission" \
     --metadata "$ROOT/submission_metadata.json" \
     --results "$RESULTS" \

@@ -1,10 +1,10 @@
-"""The grader's sandbox: protocol, conversion, cell errors, restarts, limits, blocked modules.
+"""The sandbox: protocol, conversion, cell errors, restarts, limits, blocked modules, its cache.
 
 Expected values are computed here with numpy (the independent oracle); the sandbox only transports.
-The attack suite is in test_grading_attacks.py.
+The attack suite is in test_attacks.py. The exposed package of these tests is the repository's own
+library, ``flowtrack`` (any package would do).
 """
 
-import json
 import math
 import os
 import time
@@ -13,14 +13,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtrack_course.grading.notebook import NotebookError, extract_cells
-from flowtrack_course.grading.sandbox import Limits, Sandbox, bwrap_status
-from flowtrack_course.grading.spec import Call, compare_arrays
+from grading_sandbox import Call, Limits, bwrap_status
+from grading_sandbox import Sandbox as _Sandbox
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[3]
 FAST = Limits(cpu_seconds=5, wall_seconds=10, memory_bytes=1 << 30)
+LIBRARY = ("flowtrack",)  # the package these sandboxes expose
+GRADER = ("flowtrack_course",)  # a grader's own package: never importable nor readable
+
+
+def Sandbox(cells, **kwargs):
+    return _Sandbox(cells, packages=LIBRARY, private=GRADER, **kwargs)
 
 
 @pytest.fixture(params=["bwrap", "fallback"])
@@ -34,61 +39,6 @@ def mode(request, monkeypatch):
 
 # -- extract_cells ----------------------------------------------------------------------------------
 
-
-def _cell(gid, src, kind="code"):
-    cell = {"cell_type": kind, "metadata": {"nbgrader": {"grade_id": gid, "solution": True}}, "source": src}
-    if kind == "code":
-        cell.update(execution_count=None, outputs=[])
-    return cell
-
-
-def _write_nb(path, cells):
-    nb = {"nbformat": 4, "nbformat_minor": 5, "metadata": {}, "cells": cells}
-    path.write_text(json.dumps(nb))
-    return path
-
-
-def test_extract_cells_order_duplicates_and_lists(tmp_path):
-    nb = _write_nb(tmp_path / "a.ipynb", [
-        _cell("intro", "# text", kind="markdown"),
-        _cell("second", ["def g():\n", "    return 2\n"]),
-        _cell("first", "def f():\n    return 1\n"),
-        _cell("second", "def g():\n    return 'duplicate'\n"),
-        {"cell_type": "code", "metadata": {}, "source": "x = 1", "outputs": [], "execution_count": None},
-    ])
-    got = extract_cells(nb, ["first", "second"])
-    assert got == [("second", "def g():\n    return 2\n"), ("first", "def f():\n    return 1\n")]
-
-
-@pytest.mark.parametrize(
-    "content, match",
-    [
-        ("{not json", "not valid JSON"),
-        ("[1, 2]", "no list of cells"),
-        ('{"cells": 3}', "no list of cells"),
-    ],
-)
-def test_extract_cells_rejects_non_notebooks(tmp_path, content, match):
-    p = tmp_path / "bad.ipynb"
-    p.write_text(content)
-    with pytest.raises(NotebookError, match=match):
-        extract_cells(p, ["answer"])
-
-
-def test_extract_cells_missing_markdown_and_bad_arguments(tmp_path):
-    nb = _write_nb(tmp_path / "a.ipynb", [_cell("answer", "x = 1"), _cell("text", "hi", kind="markdown")])
-    with pytest.raises(NotebookError, match="no cell with grade id 'other'"):
-        extract_cells(nb, ["answer", "other"])
-    with pytest.raises(NotebookError, match="not a code cell"):
-        extract_cells(nb, ["text"])
-    with pytest.raises(NotebookError, match="cannot read"):
-        extract_cells(tmp_path / "missing.ipynb", ["answer"])
-    with pytest.raises(TypeError, match="grade_ids"):
-        extract_cells(nb, "answer")
-    assert issubclass(NotebookError, ValueError)
-
-
-# -- protocol and conversion ------------------------------------------------------------------------
 
 ECHO = """
 import numpy as np
@@ -126,7 +76,7 @@ def test_protocol_roundtrip_and_conversion(mode, rng):
     with Sandbox([("echo", ECHO)], limits=FAST) as sb:
         assert sb.isolation == "bwrap" if mode == "bwrap" else sb.isolation.startswith("fallback:")
         out = sb.run(calls, timeout=20)
-    assert compare_arrays(out[0], a + b, rtol=0, atol=0) == (True, "ok")  # JSON keeps float64 exactly
+    assert out[0].ok and np.array_equal(np.asarray(out[0].value), a + b)  # JSON keeps float64 exactly
     assert out[1].value == {"type": "ndarray", "dtype": "float64", "shape": [3, 2]}
     assert out[2].value == {"type": "ndarray", "dtype": "int64", "shape": [2, 2]}
     assert out[3].value == {"type": "ndarray", "dtype": "float64", "shape": [0, 3]}
@@ -255,14 +205,15 @@ def try_import(name):
     blocked = ["flowtrack.kalman", "scipy.optimize"]
     with Sandbox([("a", src)], blocked=blocked, limits=FAST) as sb:
         names = ["flowtrack.kalman", "flowtrack.camera", "flowtrack_course.grading",
-                 "flowtrack_course.grading.sandbox",
+                 "flowtrack_course.grading.engine", "grading_sandbox",
                  "scipy.optimize", "scipy.linalg", "numpy"]
         outcomes = sb.run([Call("try_import", (n,)) for n in names], timeout=30)
         out = dict(zip(names, (o.value for o in outcomes)))
     assert out["flowtrack.kalman"] == "ImportError: flowtrack.kalman is not available in this exercise"
     assert out["flowtrack.camera"] == "ok"
     assert out["flowtrack_course.grading"].startswith("ImportError")
-    assert out["flowtrack_course.grading.sandbox"].startswith("ImportError")
+    assert out["flowtrack_course.grading.engine"].startswith("ImportError")
+    assert out["grading_sandbox"].startswith("ImportError")  # the sandbox itself
     assert out["scipy.optimize"].startswith("ImportError") and "scipy.optimize" in out["scipy.optimize"]
     assert out["scipy.linalg"] == "ok" and out["numpy"] == "ok"
 
@@ -303,7 +254,7 @@ def test_root_with_a_private_tmpdir_still_grades(tmp_path, monkeypatch):
     # unprivileged uid must still reach its cache and its directory.
     import tempfile
 
-    from flowtrack_course.grading import cache
+    from grading_sandbox import cache
 
     private = tmp_path / "private"
     private.mkdir(mode=0o700)
@@ -319,8 +270,8 @@ def test_root_with_a_private_tmpdir_still_grades(tmp_path, monkeypatch):
 def test_root_with_a_private_venv_still_grades(tmp_path, monkeypatch):
     # A fresh clone under /root (mode 700) with its .venv there: the unprivileged uid cannot read
     # those packages, so the sandbox gets a world-readable mirror of them (without flowtrack).
-    from flowtrack_course.grading import runtime
-    from flowtrack_course.grading import sandbox as sbmod
+    from grading_sandbox import runtime
+    from grading_sandbox import sandbox as sbmod
 
     real = runtime.site_dirs()
     private = tmp_path / "venv" / "site-packages"
@@ -352,9 +303,9 @@ def private_cache(monkeypatch):
     import shutil
     import tempfile
 
-    from flowtrack_course.grading import cache, runtime
+    from grading_sandbox import cache, runtime
 
-    makers = (runtime.filtered_flowtrack, runtime.runner_dir, runtime.python_runtime)
+    makers = (runtime.filtered_packages, runtime.runner_dir, runtime.python_runtime)
     for m in makers:
         m.cache_clear()
     base = Path(tempfile.mkdtemp(prefix="flowtrack-cache-test-"))
@@ -375,9 +326,9 @@ def _aged(path, days):
 
 
 def test_stale_cached_copies_are_pruned_when_a_new_one_is_made(private_cache, tmp_path):
-    from flowtrack_course.grading import cache
+    from grading_sandbox import cache
 
-    kind = private_cache / "ft"
+    kind = private_cache / "pkg"
     outside = tmp_path / "outside"
     outside.mkdir()
     (outside / "keep.txt").write_text("not the cache's")
@@ -420,7 +371,7 @@ def test_stale_cached_copies_are_pruned_when_a_new_one_is_made(private_cache, tm
 
 
 def test_sandbox_starts_mark_their_copies_used_and_survive_a_prune(mode, private_cache):
-    stale = private_cache / "ft" / ("a" * 20)  # a flowtrack copy of an older version
+    stale = private_cache / "pkg" / ("a" * 20)  # a flowtrack copy of an older version
     (stale / "flowtrack").mkdir(parents=True)
     _aged(stale, 2)
     src = ("import importlib\ndef where(name):\n"
@@ -428,7 +379,7 @@ def test_sandbox_starts_mark_their_copies_used_and_survive_a_prune(mode, private
     calls = [Call("where", ("flowtrack.camera",))]
 
     def copies():
-        return sorted(p for p in (private_cache / "ft").iterdir() if p.name[0] != ".")
+        return sorted(p for p in (private_cache / "pkg").iterdir() if p.name[0] != ".")
 
     with Sandbox([("a", src)], blocked=["flowtrack.kalman"], limits=FAST) as sb:
         assert sb.run(calls, timeout=30)[0].value == "camera.py"
@@ -457,7 +408,7 @@ def test_package_entries_match_every_file_resolved(allowed):
     allowed packages' distributions (the oracle resolves each file of each distribution)."""
     import importlib.metadata as md
 
-    from flowtrack_course.grading.runtime import allowed_packages, package_entries, site_dirs
+    from grading_sandbox.runtime import allowed_packages, package_entries, site_dirs
 
     packages = allowed_packages(allowed)
     by_top = md.packages_distributions()

@@ -1,4 +1,4 @@
-"""Issue 5's attack list, run against the Sandbox directly with a toy exercise.
+"""The attack list, run against the Sandbox directly with a toy exercise.
 
 The toy exercise grades ``add(a, b)`` against ``a + b`` computed here by the test (the trusted
 oracle) on random arrays. Each attack must score what an honest wrong answer scores (0), the run
@@ -15,13 +15,31 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtrack_course.grading.sandbox import Limits, Sandbox, SandboxPool, bwrap_status
-from flowtrack_course.grading.spec import Call, Outcome, compare_arrays
-from grading_helpers import SANDBOX_MODES, use_sandbox_mode
+from grading_sandbox import Call, Limits, SandboxPool, bwrap_status
+from grading_sandbox import Sandbox as _Sandbox
+from grading_sandbox.testing import SANDBOX_MODES, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[3]
+LIBRARY = ("flowtrack",)  # the package these sandboxes expose (the repository's library)
+GRADER = ("flowtrack_course",)  # a grader's own package: never importable nor readable
+
+
+def Sandbox(cells, **kwargs):
+    return _Sandbox(cells, packages=LIBRARY, private=GRADER, **kwargs)
+
+
+def _matches(outcome, expected, rtol=1e-6, atol=1e-9) -> bool:
+    """The toy exercise's trusted comparison: a plain-data array of ``expected``'s shape, within the
+    tolerances (what a grader's comparison checks)."""
+    if not outcome.ok:
+        return False
+    try:
+        got = np.array(outcome.value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        return False
+    return got.shape == np.shape(expected) and bool(np.allclose(got, expected, rtol=rtol, atol=atol))
 LIMITS = Limits(cpu_seconds=3, wall_seconds=5, memory_bytes=1 << 30, processes=16)
 HONEST_MUL = "\ndef mul(a, b):\n    return np.asarray(a) * b\n"
 
@@ -71,14 +89,16 @@ def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=()) -
     runs = []
     for pooled in (False, True):
         pool = SandboxPool()
-        factory = pool if pooled else Sandbox
-        with factory([("answer", src)], limits=LIMITS, blocked=blocked, hidden_paths=hidden) as sb:
+        factory = pool if pooled else _Sandbox
+        with factory([("answer", src)], limits=LIMITS, blocked=blocked, hidden_paths=hidden,
+                     packages=LIBRARY, private=GRADER) as sb:
             outcomes = sb.run([Call("add", p) for p in pairs], timeout=timeout)
-            score = np.mean([compare_arrays(o, a + b)[0] for o, (a, b) in zip(outcomes, pairs)])
+            score = np.mean([_matches(o, a + b) for o, (a, b) in zip(outcomes, pairs)])
             after = sb.run([Call("mul", (x, 3.0))], timeout=10)  # other tests go on
-        assert compare_arrays(after[0], x * 3.0)[0], after[0]
+        assert _matches(after[0], x * 3.0), after[0]
         if pooled:
-            with pool([("next", NEXT_EXERCISE)], limits=LIMITS, blocked=blocked, hidden_paths=hidden) as nx:
+            with pool([("next", NEXT_EXERCISE)], limits=LIMITS, blocked=blocked, hidden_paths=hidden,
+                      packages=LIBRARY, private=GRADER) as nx:
                 (probe,) = nx.run([Call("probe")], timeout=10)
             assert probe.ok and probe.value == [[], [], False], probe
         pool.close()
@@ -198,7 +218,8 @@ def _snapshot(root: Path) -> dict:
 def test_reading_hidden_tests_solutions_and_gradebook(mode, course):
     targets = [str(p) for p in sorted(course.rglob("*")) if p.is_file()]
     targets += [str(REPO / d) for d in ("exercises", "solutions", "reference_impl/flowtrack/camera.py",
-                                        "reference_impl/flowtrack_course/grading/exercises.py", "README.md")]
+                                        "exercises/ex05_cv_model/grading.py",
+                                        "reference_impl/flowtrack_course/grading/engine/run.py", "README.md")]
     cell = f"""
 import os
 TARGETS = {targets!r}
@@ -327,7 +348,7 @@ def add(a, b):
         except (ImportError, OSError, AttributeError):
             pass
     try:
-        import flowtrack_course.grading.exercises
+        import flowtrack_course.grading.engine
         return "grader imported"
     except ImportError:
         pass
@@ -437,9 +458,9 @@ def add(a, b):
         uid = sb._uid
         assert not out.ok
         x = np.arange(3.0)
-        assert compare_arrays(sb.run([Call("mul", (x, 2.0))], timeout=10)[0], 2 * x)[0]
+        assert _matches(sb.run([Call("mul", (x, 2.0))], timeout=10)[0], 2 * x)
     if uid is not None:  # grading as root: a per-sandbox uid, so we can look for survivors
-        from flowtrack_course.grading.isolation import uid_has_processes
+        from grading_sandbox.isolation import uid_has_processes
 
         assert not uid_has_processes(uid)
 
@@ -487,7 +508,7 @@ def test_cleanup_does_not_chmod_through_planted_symlinks():
     import shutil
     import tempfile
 
-    from flowtrack_course.grading.isolation import remove_tree
+    from grading_sandbox.isolation import remove_tree
 
     tmp_path = Path(tempfile.mkdtemp(prefix="ft-rmtree-"))  # traversable by the uid used below
     try:
@@ -528,30 +549,15 @@ def _check_cleanup(tmp_path, remove_tree):
     assert target.stat().st_mode & 0o777 == 0o600
 
 
-@pytest.mark.parametrize("value, ok", [
-    ([1.0, float("inf"), float("nan")], True),
-    ([1.0, float("nan"), float("nan")], False),  # NaN where the reference gates (inf)
-    ([1.0, -float("inf"), float("nan")], False),
-    ([1.0, float("inf"), float("inf")], False),
-    ([1.0, float("inf"), 0.0], False),
-    ([2 ** 70, float("inf"), float("nan")], False),  # huge integers are numbers, just wrong ones
-    ([2 ** 2000, float("inf"), float("nan")], False),  # beyond float64: not a number array
-    ([True, float("inf"), float("nan")], True),  # bool is a number in JSON's sense (1.0)
-])
-def test_compare_non_finite_and_huge_values(value, ok):
-    expected = np.array([1.0, np.inf, np.nan])
-    assert compare_arrays(Outcome(True, value), expected)[0] is ok
-
-
 def test_writing_into_the_sandbox_caches_or_the_runtime(mode):
     # The filtered flowtrack copy, the runner, the Python runtime (or its mirror) and numpy are
     # shared by every later student: none of them may be changed from inside.
-    from flowtrack_course.grading import runtime
+    from grading_sandbox import runtime
 
     # The copy and the runner this sandbox mounts (built here if a source edit made new ones);
     # the shared cache folders themselves gain copies for other blocked sets from parallel runs.
     grade("def add(a, b):\n    return np.asarray(a) + b\n")
-    mounted = (runtime.filtered_flowtrack(("flowtrack_course.grading",)), runtime.runner_dir())
+    mounted = (runtime.filtered_packages(LIBRARY, ()), runtime.runner_dir())
     before = [_snapshot(d) for d in mounted]
     cell = """
 import os, sys, flowtrack, numpy
