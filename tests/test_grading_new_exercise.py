@@ -130,7 +130,7 @@ def test_the_new_folder_is_found(course):
 def test_release_check_and_grade_a_new_exercise(course, tmp_path, capsys):
     # release: the student's notebook at exercises/<notebook>, its grading files beside it
     bundle = tmp_path / "bundle"
-    info = release(bundle, source=course)
+    info = release(bundle, source=course, with_checks=True)
     assert info["exercises"] == ["ex99_dot.ipynb"]
     stub = bundle / "exercises" / "ex99_dot.ipynb"
     assert "raise NotImplementedError" in stub.read_text() and "BEGIN SOLUTION" not in stub.read_text()

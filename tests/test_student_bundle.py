@@ -254,12 +254,18 @@ def test_exercise_texts_do_not_print_another_exercises_answer():
     assert not any(other_order.search(t) for k, t in text.items() if k != "ex11_concepts")
 
 
-def test_the_bundle_checks_its_exercises_on_its_own(bundle):
-    """A student's `flowtrack check` in the bundle (no course checkout around) finds the exercise's
-    grading module there: the bundle holds each exercise's grading files, and nothing else of the
-    course's exercise folders (no notebook with its solutions, worked solution or test answers)."""
+def test_a_bundle_with_checks_checks_its_exercises_on_its_own(tmp_path):
+    """A student's `flowtrack check` in a bundle made ``--with-checks`` (no course checkout around)
+    finds the exercise's grading module there; such a bundle holds each exercise's grading files and
+    nothing else of the course's exercise folders (no notebook with its solutions, worked solution or
+    test answers). A plain bundle holds no grading module."""
     import os
 
+    plain = tmp_path / "plain"
+    release(plain, source=ROOT)
+    assert not list((plain / "exercises").glob("ex*/*.py"))
+    bundle = tmp_path / "bundle"
+    release(bundle, source=ROOT, with_checks=True)
     ids = sorted(p.parent.name for p in (ROOT / "exercises").glob("ex*/grading.py"))
     assert ids and all((bundle / "exercises" / i / "grading.py").is_file() for i in ids)
     leaked = [p for p in (bundle / "exercises").glob("ex*/*") if p.suffix in (".ipynb", ".md")
@@ -272,3 +278,6 @@ def test_the_bundle_checks_its_exercises_on_its_own(bundle):
                        timeout=300)
     assert r.returncode == 1, r.stdout + r.stderr  # the released stub fails its public tests ...
     assert "public score: 0 / 3" in r.stdout  # ... graded by the bundle's own copy of the tests
+    r = subprocess.run([sys.executable, "-c", code], cwd=plain, env=env, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2 and "holds no exercise's grading module" in r.stderr, r.stderr

@@ -17,11 +17,13 @@ import pytest
 
 from grading_sandbox import Call, Limits, SandboxPool, bwrap_status
 from grading_sandbox import Sandbox as _Sandbox
+from grading_sandbox.runtime import package_dir, project_root, site_dirs
 from grading_sandbox.testing import SANDBOX_MODES, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
-REPO = Path(__file__).resolve().parents[3]
+# the checkout these tests run from: the source tree of the package (found as the sandbox finds it)
+REPO = project_root(package_dir("grading_sandbox"), site_dirs())
 LIBRARY = ("flowtrack",)  # the package these sandboxes expose (the repository's library)
 GRADER = ("flowtrack_course",)  # a grader's own package: never importable nor readable
 

@@ -15,10 +15,12 @@ import pytest
 
 from grading_sandbox import Call, Limits, bwrap_status
 from grading_sandbox import Sandbox as _Sandbox
+from grading_sandbox.runtime import package_dir, project_root, site_dirs
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
-REPO = Path(__file__).resolve().parents[3]
+# the checkout these tests run from: the source tree of the package (found as the sandbox finds it)
+REPO = project_root(package_dir("grading_sandbox"), site_dirs())
 FAST = Limits(cpu_seconds=5, wall_seconds=10, memory_bytes=1 << 30)
 LIBRARY = ("flowtrack",)  # the package these sandboxes expose
 GRADER = ("flowtrack_course",)  # a grader's own package: never importable nor readable

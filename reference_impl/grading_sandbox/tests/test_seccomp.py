@@ -27,7 +27,6 @@ from grading_sandbox.seccomp import AUDIT_ARCH, SYSCALLS, preexec_installer, pro
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
-ROOT = Path(__file__).resolve().parents[1]
 needs_filter = pytest.mark.skipif(not seccomp_status()[0], reason=f"no seccomp filter: {seccomp_status()[1]}")
 
 

@@ -7,9 +7,9 @@
     DIR/exercises/<notebook>         each exercise's notebook (its ``Exercise.notebook``, e.g.
                                      ``exercises/exNN_name.ipynb``), made from the course's
                                      ``exercises/<id>/`` folder
-    DIR/exercises/<id>/              the exercise's grading files, which ``flowtrack check`` runs
-                                     (:func:`~..engine.discovery.grading_files`: no notebook, worked
-                                     solution or test answers)
+    DIR/exercises/<id>/              with ``with_checks`` only: the exercise's grading files
+                                     (:func:`~..engine.discovery.grading_files`), so that
+                                     ``flowtrack check`` runs in the bundle without the course
     DIR/exercises/<lang>/<problem>/  the stubs of the answers in other languages, same paths as in
                                      the course
 
@@ -20,6 +20,13 @@ The exercise notebooks go through nbgrader's own preprocessors, in the order nbg
 removed), ``ClearMarkScheme``, ``ComputeChecksums``, ``CheckCellMetadata``. The bundle is then
 scanned (:func:`scan_bundle`); any solution marker, hidden-test marker, output or ``solutions/``
 folder left in it aborts the release.
+
+A student's ``flowtrack check`` runs an exercise's public tests from its grading module, which it
+finds in the course folder (``--course``, ``$FLOWTRACK_COURSE``, the current folder, or the folder
+above the notebook). The bundle holds none by default: a grading module computes the expected values
+with the reference implementation (its mistake variants are near-solutions) and draws the hidden
+inputs. ``with_checks`` copies them into the bundle, so that students can check without the course;
+choose it knowingly (the hidden inputs stay keyed by the instructor's secret).
 """
 
 from __future__ import annotations
@@ -214,8 +221,15 @@ def _unlink_solutions(markdown: str) -> str:
     return _SOLUTION_LINK.sub(r"\1 (in the instructor's copy of the course)", markdown)
 
 
-def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, force: bool = False) -> dict:
-    """Write the student bundle to ``out`` (see the module docstring).
+def release(
+    out: str | os.PathLike,
+    *,
+    source: str | os.PathLike | None = None,
+    force: bool = False,
+    with_checks: bool = False,
+) -> dict:
+    """Write the student bundle to ``out`` (see the module docstring; ``with_checks`` adds the
+    exercises' grading modules).
 
     ``out`` must be missing, empty or an earlier bundle (it is then replaced); ``force`` replaces any
     folder. Returns ``{"lessons": [...], "exercises": [...], "languages": [...], "out": Path}``
@@ -272,7 +286,7 @@ def release(out: str | os.PathLike, *, source: str | os.PathLike | None = None, 
             nbformat.write(nb, dest)
             exercises.append(ex.notebook)
             folder = catalog.course.folder(ex.id)
-            for p in grading_files(folder):  # what `flowtrack check` runs in the bundle
+            for p in grading_files(folder) if with_checks else ():  # what `flowtrack check` runs
                 target = tmp / "exercises" / ex.id / p.relative_to(folder)
                 target.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(p, target)

@@ -75,6 +75,12 @@ def check_notebook(
     if not path.is_file():
         raise FileNotFoundError(f"notebook: no such file: {path}")
     catalog = course_near(path, course)
+    if not catalog.default():
+        raise ValueError(
+            f"notebook: the course folder {catalog.root} holds no exercise's grading module "
+            "(exercises/<id>/grading.py): pass --course DIR (a checkout of the course), or ask your "
+            "instructor for a bundle made with `flowtrack release --with-checks`"
+        )
     renamed_note = ""
     try:
         exercise = catalog.get(path)  # a notebook, or a source file in another language

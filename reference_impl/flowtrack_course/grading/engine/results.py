@@ -123,14 +123,14 @@ def results_json(
         for t in r.tests:
             if t.hidden:
                 output = f"hidden test {t.name}: {round_score(t.score):g} / {round_score(t.max_score):g}"
-                lines = feedback_lines(t, hidden=True, catalogue=r.catalogue)
-                output += "".join(f"\n{line}" for line in lines)
+                shown = feedback_lines(t, hidden=True, catalogue=r.catalogue)
+                output += "".join(f"\n{line}" for line in shown)
                 visibility = hidden_visibility
             else:
                 output = t.message
                 output += "".join(f"\nproblem: {p}" for p in r.problems if p != t.message)
-                lines = feedback_lines(t, hidden=False, with_message=False, catalogue=r.catalogue)
-                output += "".join(f"\n{line}" for line in lines)
+                shown = feedback_lines(t, hidden=False, with_message=False, catalogue=r.catalogue)
+                output += "".join(f"\n{line}" for line in shown)
                 visibility = "visible"
             tests.append(
                 {
