@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["ENV_BWRAP", "ENV_CACHE", "ENV_CGROUP", "ENV_MODE", "ENV_SECCOMP", "NAME", "env"]
+__all__ = ["ENV_BWRAP", "ENV_CACHE", "ENV_CGROUP", "ENV_MODE", "ENV_SECCOMP", "NAME", "env", "switched_off"]
 
 ENV_MODE = "FLOWTRACK_SANDBOX"
 ENV_BWRAP = "FLOWTRACK_BWRAP"

@@ -415,7 +415,7 @@ class Sandbox:
         if self._zygote:
             self._ctl, ctl_child = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
             ctl_fd = ctl_child.fileno()
-        # The seccomp filter (memfd, System V IPC, ... refused: see grading.seccomp): bubblewrap loads
+        # The seccomp filter (memfd, System V IPC, ... refused: see .seccomp): bubblewrap loads
         # it from a pipe (--seccomp FD) right before it executes the child; otherwise preexec_fn does.
         self.seccomp, _ = seccomp_status()
         install, filter_fd = None, None
