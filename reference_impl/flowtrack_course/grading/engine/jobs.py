@@ -11,9 +11,12 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .spec import Exercise
+
+if TYPE_CHECKING:
+    from .catalog import Catalog
 
 __all__ = ["VISIBILITIES", "ClassJob", "GradingOptions", "StudentJob"]
 
@@ -114,7 +117,7 @@ class ClassJob:
 
     submissions: Path
     out: Path
-    catalog: Any = None
+    catalog: Catalog | None = None
     exercises: tuple[Exercise, ...] | None = None
     jobs: int = 1
     options: GradingOptions = field(default_factory=GradingOptions)
