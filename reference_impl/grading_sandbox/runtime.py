@@ -113,12 +113,17 @@ def python_runtime(need_world_readable: bool) -> Runtime:
 
 
 def site_dirs() -> list[str]:
-    """The interpreter's existing site-packages folders, in ``site`` order, without duplicates."""
+    """The interpreter's existing site-packages folders, in ``site`` order, then those a ``.pth``
+    file put on ``sys.path`` (another environment's packages chained in), without duplicates: the
+    sandbox's child runs with ``-S``, so it sees only the folders given here."""
     import site
 
     dirs = []
     for d in site.getsitepackages():
         if Path(d).is_dir() and d not in dirs:
+            dirs.append(d)
+    for d in sys.path:
+        if d and Path(d).name in ("site-packages", "dist-packages") and Path(d).is_dir() and d not in dirs:
             dirs.append(d)
     return dirs
 
