@@ -10,8 +10,9 @@ Layers, bottom up (each imports only those below it):
   :mod:`.symbolic`, :mod:`.authoring` (what an exercise's grading module is written with);
 - :mod:`.discovery` (one folder per exercise), :mod:`.catalog` (the course and other sources of
   exercises), :mod:`.results`, :mod:`.jobs` (a run's options and jobs as data);
-- :mod:`.run` (one exercise in the sandbox), :mod:`.student` (one student's folder),
-  :mod:`.classrun` (a class, in worker processes).
+- :mod:`.run` (one exercise in the sandbox), :mod:`.student` (one student's folder: where its
+  files are, whether earlier results stand), :mod:`.layout` (what a SUBMISSIONS folder holds:
+  renamed copies, flat LMS downloads), :mod:`.classrun` (a class, in worker processes).
 
 The sandbox is the separate package :mod:`grading_sandbox`.
 """
