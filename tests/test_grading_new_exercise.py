@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import textwrap
 from pathlib import Path
 
@@ -127,7 +128,9 @@ def test_the_new_folder_is_found(course):
     assert [m.exercise for m in ex.mistakes] == ["ex99_dot"]
 
 
-def test_release_check_and_grade_a_new_exercise(course, tmp_path, capsys):
+def test_release_check_and_grade_a_new_exercise(course, tmp_path, capsys, monkeypatch):
+    # `flowtrack grade --course` makes its course this process's (for its workers): undone afterwards
+    monkeypatch.setenv("FLOWTRACK_COURSE", os.environ.get("FLOWTRACK_COURSE", ""))
     # release: the student's notebook at exercises/<notebook>, its grading files beside it
     bundle = tmp_path / "bundle"
     info = release(bundle, source=course, with_checks=True)

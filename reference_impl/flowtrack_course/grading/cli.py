@@ -67,10 +67,14 @@ def _add_secret_option(p: argparse.ArgumentParser) -> None:
 
 def _cmd_grade(args: argparse.Namespace) -> int:
     # layout checks, re-grade reasons, class report and LMS export: grade.command.run_grade
+    from ..course import use_course
     from .engine.classrun import UnsafeSandbox
     from .engine.jobs import ClassJob, GradingOptions
     from .grade.command import run_grade
     from .sources import course_catalog
+
+    # the course of this run, also for the worker processes (their fork server reads the variable)
+    course = use_course(args.course, need=("exercises",))
 
     options = GradingOptions(
         secret=_secret(args.secret_file),
@@ -79,7 +83,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         force=args.force,
     )
     job = ClassJob(
-        args.submissions, args.out, catalog=course_catalog(args.course), jobs=args.jobs, options=options,
+        args.submissions, args.out, catalog=course_catalog(course), jobs=args.jobs, options=options,
         allow_unsafe_sandbox=args.allow_unsafe_sandbox, progress=not args.no_progress,
     )
     try:
