@@ -5,16 +5,16 @@ read. The values below are the names the package has always answered to (the cou
 for documents them to its instructors), so they stay as they are. A host application that wants
 other names assigns these attributes once, before it creates its first sandbox.
 
-=====================  ============================  =============================================
-attribute              environment variable          meaning
-=====================  ============================  =============================================
-``ENV_MODE``           ``FLOWTRACK_SANDBOX``         ``bwrap``, ``setpriv``, ``fallback`` or
-                                                     ``auto`` (:func:`~.isolation.choose_mode`)
-``ENV_BWRAP``          ``FLOWTRACK_BWRAP``           the bubblewrap executable to use
-``ENV_CACHE``          ``FLOWTRACK_SANDBOX_CACHE``   where the cache folder is made (:mod:`.cache`)
-``ENV_SECCOMP``        ``FLOWTRACK_SANDBOX_SECCOMP`` ``0`` turns the seccomp filter off
-``ENV_CGROUP``         ``FLOWTRACK_SANDBOX_CGROUP``  ``0`` turns the per-sandbox cgroups off
-=====================  ============================  =============================================
+===============  ===============================  ==============================================
+attribute        environment variable             meaning
+===============  ===============================  ==============================================
+``ENV_MODE``     ``FLOWTRACK_SANDBOX``            ``bwrap``, ``setpriv``, ``fallback`` or
+                                                  ``auto`` (:func:`~.isolation.choose_mode`)
+``ENV_BWRAP``    ``FLOWTRACK_BWRAP``              the bubblewrap executable to use
+``ENV_CACHE``    ``FLOWTRACK_SANDBOX_CACHE``      where the cache folder is made (:mod:`.cache`)
+``ENV_SECCOMP``  ``FLOWTRACK_SANDBOX_SECCOMP``    ``0`` turns the seccomp filter off
+``ENV_CGROUP``   ``FLOWTRACK_SANDBOX_CGROUP``     ``0`` turns the per-sandbox cgroups off
+===============  ===============================  ==============================================
 
 ``NAME`` prefixes what the sandbox creates on the machine: the cache folder
 ``<tmp>/<NAME>-<uid>``, the cgroups ``<NAME>-<pid>-<n>`` and, inside bubblewrap, the read-only

@@ -2,8 +2,8 @@
 ``gradescope``.
 
 Only argument parsing lives here (imports stay light: ``flowtrack --help`` imports this module);
-the work is done by the commands' folders :mod:`.assign`, :mod:`.check`, :mod:`.grade` and
-:mod:`.export`.
+the work is done by the commands' folders (the packages ``assign``, ``check``, ``grade`` and
+``export`` of :mod:`flowtrack_course.grading`).
 """
 
 from __future__ import annotations
