@@ -75,6 +75,9 @@ def _alarm(seconds: float):
 
 
 def call_all(namespace: Mapping[str, Any], calls: Sequence[Call], timeout: float) -> list[Outcome]:
+    """Make ``calls`` of the functions in ``namespace`` in this process, as the sandboxed child does
+    (arguments rebuilt from plain data, results converted to plain data, a formula read by
+    :mod:`grading_sandbox.formula`), all of them within ``timeout`` seconds; one outcome per call."""
     outcomes: list[Outcome] = []
     try:
         with _alarm(timeout), warnings.catch_warnings(), np.errstate(all="ignore"):

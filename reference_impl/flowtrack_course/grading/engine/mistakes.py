@@ -118,10 +118,12 @@ class Catalogue(Mapping[str, Mistake]):
 
 
 def mistakes_of(message: Any) -> tuple[str, ...]:
+    """The ids of the mistakes a check's message (a :class:`~.feedback.Report`) recognised."""
     return tuple(getattr(message, "mistakes", ()) or ())
 
 
 def checked_of(message: Any) -> frozenset[str]:
+    """The ids of the catalogued mistakes that were visible on the inputs of a check's message."""
     return frozenset(getattr(message, "checked", ()) or ())
 
 
