@@ -15,7 +15,7 @@ Section "answers in other languages" (issue 19, ``--languages``): 20 students x 
 Mathematica x 4 problems graded by ``flowtrack grade --jobs 2``; wall-clock, CPU seconds of the grader and
 everything it started, and the load average (see ``languages_main``). Target: <= 5 min on 2 idle cores.
 
-Section "sandbox reuse" (issue 18): the same class graded by ``grade_class(jobs=2)`` twice in this
+Section "sandbox reuse": the same class graded by ``grade_class(jobs=2)`` twice in this
 process, with a fresh sandbox per student and exercise (``reuse_sandboxes=False``, the old path)
 and with zygote sandboxes shared by each worker's students (the default); the per-test scores of
 the two must be identical. Target: the whole class in <= 30 s with the shared zygotes on an idle
@@ -48,10 +48,17 @@ from pathlib import Path
 import nbformat
 
 from _results import publish
-from flowtrack_course.grading.exercises import EXERCISES
-from flowtrack_course.grading.release import release_notebook
+from flowtrack_course.grading.assign.release import release_notebook
+from flowtrack_course.grading.sources import course_catalog
 
 ROOT = Path(__file__).resolve().parents[1]
+CATALOG = course_catalog(ROOT)
+EXERCISES = CATALOG.default()
+
+
+def _source(ex) -> Path:
+    """The instructor's notebook of ``ex`` (``exercises/<id>/<notebook>``)."""
+    return CATALOG.course.source_notebook(ex)
 KINDS = ("solution", "stub", "partial")
 
 
@@ -72,7 +79,7 @@ def _student_notebook(ex, index: int, kind: str, sources: dict, stubs: dict):
 
 
 def make_class(dest: Path, n_students: int) -> list[tuple[str, str]]:
-    sources = {ex.id: nbformat.read(ROOT / "exercises" / ex.notebook, as_version=4) for ex in EXERCISES}
+    sources = {ex.id: nbformat.read(_source(ex), as_version=4) for ex in EXERCISES}
     stubs = {k: release_notebook(v) for k, v in sources.items()}
     students = []
     for s in range(n_students):
@@ -205,7 +212,8 @@ def run_flowtrack(subs: Path, out: Path, jobs: int) -> tuple[float, dict[str, fl
     exe = Path(sys.executable).parent / "flowtrack"
     t0 = time.perf_counter()
     subprocess.run(
-        [str(exe), "grade", str(subs), "--out", str(out), "--jobs", str(jobs), "--no-progress"],
+        [str(exe), "grade", str(subs), "--out", str(out), "--jobs", str(jobs), "--no-progress",
+         "--course", str(ROOT)],
         check=True, stdout=subprocess.DEVNULL,
     )
     wall = time.perf_counter() - t0
@@ -219,7 +227,7 @@ def run_nbgrader(course: Path, students: list[tuple[str, str]], subs: Path) -> t
     env = dict(os.environ, PATH=f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}")
     (course / "source" / "ps1").mkdir(parents=True)
     for ex in EXERCISES:
-        shutil.copy(ROOT / "exercises" / ex.notebook, course / "source" / "ps1" / ex.notebook)
+        shutil.copy(_source(ex), course / "source" / "ps1" / ex.notebook)
     (course / "nbgrader_config.py").write_text(
         "c = get_config()\n"
         f"c.CourseDirectory.root = {str(course)!r}\n"
@@ -353,7 +361,8 @@ def run_direct(subs: Path, students: list[tuple[str, str]], work: Path) -> tuple
 
 def _grade_cmd(subs: Path, out: Path, jobs: int) -> list[str]:
     exe = Path(sys.executable).parent / "flowtrack"
-    return [str(exe), "grade", str(subs), "--out", str(out), "--jobs", str(jobs), "--no-progress"]
+    return [str(exe), "grade", str(subs), "--out", str(out), "--jobs", str(jobs), "--no-progress",
+            "--course", str(ROOT)]
 
 
 def languages_main(args) -> int:
@@ -445,20 +454,24 @@ def breakdown(subs: Path, out: Path, n: int) -> tuple[list[str], str]:
     the student's code, the clean-ups): the first ``n`` students graded one exercise at a time in
     this process, with one shared pool whose zygotes are started (and the public tests built)
     by a first student beforehand."""
-    from flowtrack_course.grading import grade as G
+    from flowtrack_course.grading.engine.jobs import GradingOptions, StudentJob
+    from flowtrack_course.grading.engine.run import preload_modules
+    from flowtrack_course.grading.engine.student import grade_student
+    from grading_sandbox import SandboxPool
 
     students = sorted(p.name for p in subs.iterdir())[:n]
     rows = []
     with CpuMeter() as meter:
-        pool = G._shared_pool(G._preload(EXERCISES))
-        G.grade_student(students[0], subs / students[0], EXERCISES, out / "warm", sandbox_pool=pool)
+        pool = SandboxPool(preload_modules(EXERCISES))
+        grade_student(StudentJob(students[0], subs / students[0], out / "warm", EXERCISES), sandbox_pool=pool)
+        forced = GradingOptions(force=True)
         for ex in EXERCISES:
             c0, p0 = meter.elapsed(), time.process_time()
             for s in students:
-                G.grade_student(s, subs / s, [ex], out / ex.id, sandbox_pool=pool, force=True)
+                grade_student(StudentJob(s, subs / s, out / ex.id, (ex,), forced), sandbox_pool=pool)
             grader = (time.process_time() - p0) / len(students)
             rows.append((ex.id, grader, (meter.elapsed() - c0) / len(students) - grader))
-        G.close_shared_pools()
+        pool.close()
     table = ["| exercise | grader ms | sandboxes ms | total ms |", "|---|---:|---:|---:|"]
     table += [f"| {e} | {1000 * g:.0f} | {1000 * c:.0f} | {1000 * (g + c):.0f} |" for e, g, c in rows]
     g, c = sum(r[1] for r in rows), sum(r[2] for r in rows)
@@ -479,6 +492,7 @@ def _test_scores(out: Path) -> dict[tuple[str, str], float]:
 
 def reuse_section(n: int, old: bool = True) -> tuple[list[str], bool]:
     """Old path (a sandbox per student and exercise) vs shared zygotes, same class, same run."""
+    from flowtrack_course.grading.engine.jobs import ClassJob, GradingOptions
     from flowtrack_course.grading.grade import grade_class
 
     walls, cpus, scores, loads, how = {}, {}, {}, {}, ""
@@ -490,7 +504,9 @@ def reuse_section(n: int, old: bool = True) -> tuple[list[str], bool]:
             before = os.getloadavg()[0]
             with CpuMeter() as meter:
                 t0 = time.perf_counter()
-                rows = grade_class(tmp / "subs", out, jobs=2, progress=False, reuse_sandboxes=reuse)
+                job = ClassJob(tmp / "subs", out, catalog=CATALOG, jobs=2, progress=False,
+                               options=GradingOptions(reuse_sandboxes=reuse))
+                rows = grade_class(job)
                 walls[reuse] = time.perf_counter() - t0
             cpus[reuse], how = meter.seconds, meter.how
             loads[reuse] = (before, os.getloadavg()[0])

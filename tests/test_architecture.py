@@ -1,11 +1,18 @@
-"""The two layers stay apart (docs/ARCHITECTURE.md): parsed with ``ast``, never imported.
+"""The layers stay apart (docs/ARCHITECTURE.md): parsed with ``ast``, never imported.
 
-- ``flowtrack`` (the library) never imports ``flowtrack_course`` (the tooling);
-- no import cycle between modules (imports at module level; a function-level import runs later and
-  cannot deadlock the import system);
+- ``flowtrack`` (the library) never imports ``flowtrack_course`` (the tooling) nor ``grading_sandbox``;
+- ``grading_sandbox`` (the sandbox) imports nothing of the course: neither the library nor the
+  tooling, names no course folder, and says "flowtrack" only in its configuration of names;
+- the grading engine (``flowtrack_course.grading.engine``) imports no exercise, no export, no
+  command, no port and no other-language code, and names no exercise of the course; an exercise's
+  grading module is written with the engine's authoring API only;
+- no import cycle between modules, imports inside functions included (``if TYPE_CHECKING:``
+  imports, which never run, excepted);
 - no module uses another module's private names (``from flowtrack.x import _name``, or
   ``x._name`` on an imported module); underscore modules (``_validation``, ``_graph``, ...) are
-  helpers shared by their package and may be used whole.
+  helpers shared by their package and may be used whole, but only by their package: the tooling
+  never imports a private module of the library;
+- no file of the library, the tooling or the sandbox has more than 900 lines.
 
 The checker itself is tested on small made-up packages first, so that a green run means something.
 """
@@ -13,6 +20,7 @@ The checker itself is tested on small made-up packages first, so that a green ru
 from __future__ import annotations
 
 import ast
+import re
 import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +29,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "reference_impl"
-LIBRARY, TOOLING = "flowtrack", "flowtrack_course"
+LIBRARY, TOOLING, SANDBOX = "flowtrack", "flowtrack_course", "grading_sandbox"
+ENGINE = "flowtrack_course.grading.engine"
+MAX_LINES = 900
 
 
 # --------------------------------------------------------------------------------------------------
@@ -32,6 +42,8 @@ class ImportGraph:
     packages: set[str] = field(default_factory=set)
     #: module -> [(imported module, line, at module level)]
     edges: dict[str, list[tuple[str, int, bool]]] = field(default_factory=dict)
+    #: module -> [(imported module, line)] of the imports that never run (``if TYPE_CHECKING:``)
+    typing_only: dict[str, list[tuple[str, int]]] = field(default_factory=dict)
     #: (module, line, text) of every use of another module's private name
     private: list[tuple[str, int, str]] = field(default_factory=list)
 
@@ -53,40 +65,53 @@ def _private_module(module: str) -> bool:
 
 
 def _walk_with_level(tree: ast.Module):
-    """Yield ``(node, at_module_level)``; ``if TYPE_CHECKING:`` bodies count as not at module level."""
-    stack = [(n, True) for n in tree.body]
+    """Yield ``(node, at_module_level, runs)``; ``if TYPE_CHECKING:`` bodies count as not at module
+    level and as never run."""
+    stack = [(n, True, True) for n in tree.body]
     while stack:
-        node, top = stack.pop()
-        yield node, top
+        node, top, runs = stack.pop()
+        yield node, top, runs
         inner_top = top and not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+        inner_runs = runs
         if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
-            inner_top = False
-        stack.extend((c, inner_top) for c in ast.iter_child_nodes(node))
+            inner_top = inner_runs = False
+        stack.extend((c, inner_top, inner_runs) for c in ast.iter_child_nodes(node))
 
 
-def build_graph(src: Path, roots: tuple[str, ...]) -> ImportGraph:
-    """Parse every module of the packages ``roots`` under ``src``."""
+def build_graph(src: Path, roots: tuple[str, ...], skip: tuple[str, ...] = ()) -> ImportGraph:
+    """Parse every module of the packages ``roots`` under ``src`` (but those in the packages ``skip``)."""
     g = ImportGraph()
     for root in roots:
         for path in sorted((src / root).rglob("*.py")):
             name = _module_name(path, src)
+            if any(name == s or name.startswith(s + ".") for s in skip):
+                continue
             g.modules[name] = path
             if path.name == "__init__.py":
                 g.packages.add(name)
     for name, path in g.modules.items():
         tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
         package = name if name in g.packages else name.rpartition(".")[0]
-        edges = g.edges.setdefault(name, [])
+        running = g.edges.setdefault(name, [])
+        never = g.typing_only.setdefault(name, [])
         aliases: dict[str, str] = {}  # local name -> one of our modules
 
         def ours(mod: str) -> bool:
             return mod.split(".")[0] in roots
 
-        for node, top in _walk_with_level(tree):
+        for node, top, runs in _walk_with_level(tree):
+
+            def add(target: str, line: int, top: bool = top, runs: bool = runs,
+                    running: list = running, never: list = never) -> None:
+                if runs:
+                    running.append((target, line, top))
+                else:
+                    never.append((target, line))
+
             if isinstance(node, ast.Import):
                 for a in node.names:
                     if ours(a.name):
-                        edges.append((a.name, node.lineno, top))
+                        add(a.name, node.lineno)
                         top_name = a.name.split(".")[0]
                         aliases[a.asname or top_name] = a.name if a.asname else top_name
             elif isinstance(node, ast.ImportFrom):
@@ -101,10 +126,10 @@ def build_graph(src: Path, roots: tuple[str, ...]) -> ImportGraph:
                 for a in node.names:
                     sub = f"{target}.{a.name}"
                     if sub in g.modules:  # a submodule
-                        edges.append((sub, node.lineno, top))
+                        add(sub, node.lineno)
                         aliases[a.asname or a.name] = sub
                         continue
-                    edges.append((target, node.lineno, top))
+                    add(target, node.lineno)
                     if _is_private(a.name) and not _private_module(target) and target != name:
                         g.private.append((name, node.lineno, f"from {target} import {a.name}"))
             elif isinstance(node, ast.Call) and ast.unparse(node.func) in (
@@ -114,7 +139,7 @@ def build_graph(src: Path, roots: tuple[str, ...]) -> ImportGraph:
                 if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
                     mod = arg.value
                     if ours(mod):
-                        edges.append((mod, node.lineno, top))
+                        add(mod, node.lineno)
         for node in ast.walk(tree):  # x._name on a module imported under the name x
             if isinstance(node, ast.Attribute) and _is_private(node.attr):
                 base = ast.unparse(node.value)
@@ -127,9 +152,13 @@ def build_graph(src: Path, roots: tuple[str, ...]) -> ImportGraph:
     return g
 
 
-def cycles(g: ImportGraph) -> list[list[str]]:
-    """Strongly connected components (size > 1, or a self-import) of the module-level import graph."""
-    adj = {m: sorted({t for t, _, top in es if top and t in g.modules}) for m, es in g.edges.items()}
+def cycles(g: ImportGraph, module_level_only: bool = False) -> list[list[str]]:
+    """Strongly connected components (size > 1, or a self-import) of the import graph: every import
+    that runs (inside functions too), or only those at module level."""
+    adj = {
+        m: sorted({t for t, _, top in es if (top or not module_level_only) and t in g.modules})
+        for m, es in g.edges.items()
+    }
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     on_stack: set[str] = set()
@@ -137,7 +166,7 @@ def cycles(g: ImportGraph) -> list[list[str]]:
     out: list[list[str]] = []
     counter = [0]
 
-    def visit(v: str) -> None:  # Tarjan (the graph has ~80 nodes: recursion is fine)
+    def visit(v: str) -> None:  # Tarjan (the graph has ~200 nodes: recursion is fine)
         index[v] = low[v] = counter[0]
         counter[0] += 1
         stack.append(v)
@@ -165,15 +194,25 @@ def cycles(g: ImportGraph) -> list[list[str]]:
     return out
 
 
-def layer_violations(g: ImportGraph) -> list[tuple[str, int, str]]:
-    """Every import (at any level) of the tooling by a library module."""
+def imports_of(g: ImportGraph, importer: str, imported: tuple[str, ...]) -> list[tuple[str, int, str]]:
+    """Every import (at any level, ``TYPE_CHECKING`` ones included) by a module of ``importer`` (a
+    package or module name) of a module of one of ``imported``."""
+
+    def inside(mod: str, pkg: str) -> bool:
+        return mod == pkg or mod.startswith(pkg + ".")
+
     return [
         (m, line, t)
-        for m, es in g.edges.items()
-        if m.split(".")[0] == LIBRARY
-        for t, line, _ in es
-        if t.split(".")[0] == TOOLING
+        for m in g.modules
+        if inside(m, importer)
+        for t, line in [(t, line) for t, line, _ in g.edges.get(m, [])] + g.typing_only.get(m, [])
+        if any(inside(t, i) for i in imported)
     ]
+
+
+def layer_violations(g: ImportGraph) -> list[tuple[str, int, str]]:
+    """Every import (at any level) of the tooling or the sandbox by a library module."""
+    return imports_of(g, LIBRARY, (TOOLING, SANDBOX))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -186,7 +225,7 @@ def _write(src: Path, files: dict[str, str]) -> Path:
     return src
 
 
-def test_checker_finds_a_cycle_but_not_a_function_level_one(tmp_path):
+def test_checker_finds_cycles_also_through_function_level_imports(tmp_path):
     src = _write(tmp_path, {
         "flowtrack/__init__.py": "",
         "flowtrack/a.py": "from .b import f\n",
@@ -194,9 +233,14 @@ def test_checker_finds_a_cycle_but_not_a_function_level_one(tmp_path):
         "flowtrack/c.py": "import flowtrack.a\n",
         "flowtrack/d.py": "def g():\n    from .e import h\n",
         "flowtrack/e.py": "from .d import g\n",
+        "flowtrack/f.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .g import x\n",
+        "flowtrack/g.py": "from .f import y\n",
     })
     g = build_graph(src, (LIBRARY,))
-    assert cycles(g) == [["flowtrack.a", "flowtrack.b", "flowtrack.c"]]
+    assert cycles(g, module_level_only=True) == [["flowtrack.a", "flowtrack.b", "flowtrack.c"]]
+    # d <-> e is a cycle hidden in a function; f <-> g is not one (a TYPE_CHECKING import never runs)
+    assert cycles(g) == [["flowtrack.a", "flowtrack.b", "flowtrack.c"], ["flowtrack.d", "flowtrack.e"]]
+    assert imports_of(g, "flowtrack.f", ("flowtrack.g",)) == [("flowtrack.f", 3, "flowtrack.g")]
 
 
 def test_checker_finds_the_library_importing_the_tooling(tmp_path):
@@ -240,29 +284,80 @@ def test_checker_finds_private_names_across_modules(tmp_path):
 # the real packages
 @pytest.fixture(scope="module")
 def graph() -> ImportGraph:
-    return build_graph(SRC, (LIBRARY, TOOLING))
+    # (the sandbox's own tests expose the repository's library in their sandboxes: not part of it)
+    return build_graph(SRC, (LIBRARY, TOOLING, SANDBOX), skip=(f"{SANDBOX}.tests",))
 
 
-def test_both_packages_are_parsed(graph):
+def _shown(graph, found) -> str:
+    return "\n".join(f"{graph.modules[m].relative_to(ROOT)}:{line} imports {t}" for m, line, t in found)
+
+
+def test_all_packages_are_parsed(graph):
     expected = {"flowtrack.kalman", "flowtrack.tracking", "flowtrack_course.cli",
-                "flowtrack_course.grading.grade"}
+                f"{ENGINE}.run", f"{SANDBOX}.sandbox"}
     assert expected <= set(graph.modules)
     assert sum(len(es) for es in graph.edges.values()) > 50
 
 
 def test_the_library_never_imports_the_tooling(graph):
-    bad = [
-        f"{graph.modules[m].relative_to(ROOT)}:{line} imports {t}" for m, line, t in layer_violations(graph)
-    ]
-    assert not bad, "the library imports the course tooling:\n" + "\n".join(bad)
+    bad = layer_violations(graph)
+    assert not bad, "the library imports the course tooling or the sandbox:\n" + _shown(graph, bad)
 
 
-def test_no_import_cycles(graph):
+def test_the_sandbox_imports_nothing_of_the_course(graph):
+    bad = imports_of(graph, SANDBOX, (LIBRARY, TOOLING))
+    assert not bad, "the sandbox imports the course:\n" + _shown(graph, bad)
+    # nor names it: no course folder, and the course's name only in its configuration of names
+    course_paths = re.compile(r"exercises/|solutions/|lessons/|reference_impl|cpp_java_matlab_ports")
+    for name, path in graph.modules.items():
+        if not (name == SANDBOX or name.startswith(SANDBOX + ".")):
+            continue
+        text = path.read_text(encoding="utf-8")
+        assert not course_paths.search(text), (path, course_paths.search(text).group(0))
+        if name != f"{SANDBOX}.config":
+            assert "flowtrack" not in text.lower(), path
+
+
+# what the engine may never import: the commands above it, the exports, the other languages
+# (a source of exercises the commands compose), the ports
+ABOVE_THE_ENGINE = tuple(
+    f"flowtrack_course.{m}"
+    for m in ("grading.assign", "grading.check", "grading.grade", "grading.export", "grading.languages",
+              "grading.sources", "grading.cli", "ports", "cli", "demo", "book", "widgets", "notebooks")
+)
+
+
+def test_the_engine_imports_no_exercise_export_command_or_port(graph):
+    bad = imports_of(graph, ENGINE, ABOVE_THE_ENGINE)
+    assert not bad, "the grading engine imports a layer above it:\n" + _shown(graph, bad)
+
+
+def test_the_engine_names_no_exercise_and_exercises_use_its_authoring_api():
+    from flowtrack_course.grading.engine.discovery import discover
+
+    course = discover(ROOT)
+    assert len(course) >= 12
+    for path in sorted((SRC / "flowtrack_course" / "grading" / "engine").rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        named = [ex.id for ex in course if ex.id in text]
+        assert not named, f"{path.relative_to(ROOT)} names the exercises {named}: it must find them"
+    # an exercise folder's modules import the library, the engine's authoring API and third parties
+    allowed = (f"{ENGINE}.authoring", f"{ENGINE}.symbolic")
+    for path in sorted((ROOT / "exercises").glob("*/*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            mods = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                    else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            for mod in mods:
+                if mod.split(".")[0] in (TOOLING, SANDBOX):
+                    assert mod in allowed, f"{path.relative_to(ROOT)} imports {mod}"
+
+
+def test_no_import_cycles_even_inside_functions(graph):
     found = cycles(graph)
-    assert not found, "import cycles (module level):\n" + "\n".join(" <-> ".join(c) for c in found)
+    assert not found, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in found)
 
 
-@pytest.mark.parametrize("layer", [LIBRARY, TOOLING])
+@pytest.mark.parametrize("layer", [LIBRARY, TOOLING, SANDBOX])
 def test_no_private_names_across_modules(graph, layer):
     bad = [
         f"{graph.modules[m].relative_to(ROOT)}:{line}: {text}"
@@ -272,6 +367,21 @@ def test_no_private_names_across_modules(graph, layer):
     assert not bad, "private names used across modules (make them public or move the code):\n" + "\n".join(
         bad
     )
+
+
+def test_the_tooling_imports_no_private_module_of_the_library(graph):
+    found = imports_of(graph, TOOLING, (LIBRARY,)) + imports_of(graph, SANDBOX, (LIBRARY,))
+    bad = [(m, line, t) for m, line, t in found if _private_module(t)]
+    assert not bad, "the tooling imports private modules of the library:\n" + _shown(graph, bad)
+
+
+def test_no_file_over_900_lines():
+    long = {
+        str(p.relative_to(ROOT)): n
+        for p in sorted(SRC.rglob("*.py"))
+        if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES
+    }
+    assert not long, f"files over {MAX_LINES} lines (split them along their parts): {long}"
 
 
 def test_the_library_package_lists_no_tooling():

@@ -1,11 +1,11 @@
-"""The ten exercise notebooks and their trusted test registry (issue 5, exercises).
+"""The exercise notebooks and their trusted tests, discovered in their folders (issue 5, exercises).
 
-Every notebook is valid nbformat with valid nbgrader metadata that matches the registry; every
+Every notebook is valid nbformat with valid nbgrader metadata that matches its grading module; every
 solution scores full marks, every stub (nbgrader's own ClearSolutions) scores 0 and a typical wrong
-answer scores strictly in between - through the in-process runner (nbgrader compatibility) and
-through the sandbox the grader uses; answers that call the blocked reference score 0 in the
-sandbox. The expected values of exercise 9 (from the trusted tracker) are checked against an
-independent bookkeeping oracle written here.
+answer (its folder's ``cases.py``) scores strictly in between - through the in-process runner
+(nbgrader compatibility) and through the sandbox the grader uses; answers that call the blocked
+reference score 0 in the sandbox. The expected values of exercise 9 (from the trusted tracker) are
+checked against an independent bookkeeping oracle written here.
 """
 
 from __future__ import annotations
@@ -23,35 +23,33 @@ import nbformat
 import numpy as np
 import pytest
 
-from flowtrack_course.grading.exercises import EXERCISES, get_exercise, plain_data, run_in_process
-from flowtrack_course.grading.exercises.ex09_track_management import expected_frames
-from flowtrack_course.grading.spec import Call, Exercise, GradedTest, Outcome, student_seed
-from grading_helpers import RecordingSandbox
+from flowtrack_course.grading.check import run_in_process
+from flowtrack_course.grading.engine.seeds import student_seed
+from flowtrack_course.grading.engine.spec import Call, Exercise, GradedTest, Outcome
+from grading_helpers import (
+    COURSE,
+    EXERCISES,
+    RecordingSandbox,
+    answer,
+    answer_sources,
+    cases,
+    exercise_module,
+    get_exercise,
+    replace_solution,
+    source_notebook,
+)
+from grading_sandbox.wire import plain_data
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = COURSE
 EXDIR = ROOT / "exercises"
 IDS = [ex.id for ex in EXERCISES]
-EXPECTED_FILES = [
-    "ex01_projection_jacobian.ipynb",
-    "ex02_optical_flow.ipynb",
-    "ex03_gauss_seidel.ipynb",
-    "ex04_graph_scene_flow.ipynb",
-    "ex05_cv_model.ipynb",
-    "ex06_kalman_predict_update.ipynb",
-    "ex07_mahalanobis_gating.ipynb",
-    "ex08_hungarian.ipynb",
-    "ex09_track_management.ipynb",
-    "ex10_motion_clustering.ipynb",
-    "ex11_concepts.ipynb",
-    "ex12_rgbd_data_term.ipynb",
-]
 
 
 # --------------------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------------------
 def _read(ex) -> nbformat.NotebookNode:
-    return nbformat.read(EXDIR / ex.notebook, as_version=4)
+    return nbformat.read(source_notebook(ex), as_version=4)
 
 
 def _nbg(cell) -> dict:
@@ -59,12 +57,7 @@ def _nbg(cell) -> dict:
 
 
 def _answer_sources(nb, ex) -> dict[str, str]:
-    src = {
-        _nbg(c).get("grade_id"): c.source
-        for c in nb.cells
-        if c.cell_type == "code" and _nbg(c).get("solution")
-    }
-    return {gid: src[gid] for gid in ex.answer_cells}
+    return answer_sources(nb, ex)
 
 
 def _stub_notebook(ex) -> nbformat.NotebookNode:
@@ -88,327 +81,33 @@ def _score(results) -> float:
 
 def _replace_solution(source: str, body: str) -> str:
     """Put ``body`` (unindented) between the solution markers of an answer cell."""
-    m = re.search(r"^( *)### BEGIN SOLUTION\n.*?^ *### END SOLUTION", source, flags=re.S | re.M)
-    assert m, "no solution region"
-    indent = m.group(1)
-    new = "\n".join(indent + line if line else line for line in body.strip("\n").splitlines())
-    return source[: m.start()] + new + source[m.end() :]
-
-
-# A typical wrong answer per exercise: {grade_id: new solution body}; the other cells stay correct.
-WRONG = {
-    "ex01_projection_jacobian": {  # sign of one term flipped
-        "projection_jacobian": """
-X = np.asarray(X, dtype=float)
-J = np.zeros((X.shape[0], 2, 3))
-J[:, 0, 0] = fx / X[:, 2]
-J[:, 0, 2] = fx * X[:, 0] / X[:, 2] ** 2
-J[:, 1, 1] = fy / X[:, 2]
-J[:, 1, 2] = -fy * X[:, 1] / X[:, 2] ** 2
-return J
-"""
-    },
-    "ex02_optical_flow": {  # forgets the time step
-        "optical_flow": """
-X = np.asarray(X, dtype=float)
-Z = X[:, 2]
-ux = fx * (V[:, 0] / Z - X[:, 0] * V[:, 2] / Z**2)
-uy = fy * (V[:, 1] / Z - X[:, 1] * V[:, 2] / Z**2)
-return np.stack([ux, uy], axis=1)
-"""
-    },
-    "ex03_gauss_seidel": {  # a Jacobi sweep: the solver still converges, the sweep is wrong
-        "red_black_sweep": """
-v = np.array(v, dtype=float)
-H, W = v.shape
-deg = np.zeros((H, W))
-deg[1:, :] += 1
-deg[:-1, :] += 1
-deg[:, 1:] += 1
-deg[:, :-1] += 1
-s = np.zeros((H, W))
-s[1:] += v[:-1]
-s[:-1] += v[1:]
-s[:, 1:] += v[:, :-1]
-s[:, :-1] += v[:, 1:]
-return (rhs + lam * s) / (c + lam * deg)
-"""
-    },
-    "ex04_graph_scene_flow": {  # right-hand side without dt
-        "graph_scene_flow": """
-X = np.asarray(points, dtype=float)
-A = dt**2 * np.eye(len(X)) + lam * knn_laplacian(X, k, sigma)
-return np.linalg.solve(A, np.asarray(targets) - X)
-"""
-    },
-    "ex05_cv_model": {  # the syllabus' blkdiag(Q1d, Q1d)
-        "cv_process_noise": """
-q1d = q * np.array([[dt**4 / 4.0, dt**3 / 2.0], [dt**3 / 2.0, dt**2]])
-Q = np.zeros((4, 4))
-Q[:2, :2] = q1d
-Q[2:, 2:] = q1d
-return Q
-"""
-    },
-    "ex06_kalman_predict_update": {  # forgets R in the innovation covariance
-        "kf_update": """
-S = H @ P @ H.T
-K = P @ H.T @ np.linalg.pinv(S)
-x = x + K @ (z - H @ x)
-P = (np.eye(len(x)) - K @ H) @ P
-return x, P
-"""
-    },
-    "ex07_mahalanobis_gating": {  # gate with one degree of freedom whatever m is
-        "gated_cost": """
-from scipy.stats import chi2
-
-C = mahalanobis_cost(z_pred, S, Z)
-return np.where(C <= chi2.ppf(prob, 1), C, np.inf)
-"""
-    },
-    "ex08_hungarian": {  # greedy: repeatedly take the cheapest remaining pair
-        "hungarian": """
-C = np.array(cost, dtype=float)
-pairs = []
-for _ in range(min(C.shape)):
-    i, j = np.unravel_index(np.argmin(C), C.shape)
-    pairs.append((i, j))
-    C[i, :] = np.inf
-    C[:, j] = np.inf
-return np.array(pairs)
-"""
-    },
-    "ex09_track_management": {  # no coasting: confirmed tracks die at their first miss
-        "manage_tracks": """
-tracks = {}
-next_id = 0
-out = []
-for labels in frames:
-    tracks = {lab: t for lab, t in tracks.items() if lab in labels}
-    for t in tracks.values():
-        t[1] += 1
-        t[2] = t[2] or t[1] >= min_hits
-    for lab in labels:
-        if lab not in tracks:
-            tracks[lab] = [next_id, 1, min_hits <= 1]
-            next_id += 1
-    out.append(sorted([t[0], "confirmed" if t[2] else "tentative"] for t in tracks.values()))
-return out
-"""
-    },
-    "ex10_motion_clustering": {  # ignores min_speed: the static background becomes a cluster
-        "cluster_tracks": """
-from scipy.sparse.csgraph import connected_components
-
-P = np.asarray(points, dtype=float)
-V = np.asarray(flow, dtype=float)
-adj = (np.linalg.norm(P[:, None] - P[None], axis=2) <= radius) & (
-    np.linalg.norm(V[:, None] - V[None], axis=2) <= sigma_v
-)
-K, lab = connected_components(adj, directed=False)
-cents = np.array([P[lab == k].mean(axis=0) for k in range(K)])
-vels = np.array([V[lab == k].mean(axis=0) for k in range(K)])
-return cents, vels
-"""
-    },
-    "ex12_rgbd_data_term": {  # depth constancy D(x + u) = D(x): the range-flow -e_z is missing
-        "data_term_rows": """
-X = np.asarray(X, dtype=float)
-iz = 1.0 / X[:, 2]
-J = np.zeros((X.shape[0], 2, 3))
-J[:, 0, 0] = fx * iz
-J[:, 0, 2] = -fx * X[:, 0] * iz**2
-J[:, 1, 1] = fy * iz
-J[:, 1, 2] = -fy * X[:, 1] * iz**2
-return np.einsum("nij,ni->nj", J, grad_i), np.einsum("nij,ni->nj", J, grad_d)
-"""
-    },
-}
-
-# An answer that calls the blocked reference: {grade_id: whole cell source}.
-CHEAT = {
-    "ex01_projection_jacobian": {
-        "projection_jacobian": (
-            "from flowtrack.camera import PinholeCamera, projection_jacobian as _ref\n"
-            "def projection_jacobian(X, fx, fy):\n"
-            "    return _ref(X, PinholeCamera(fx, fy, 0.0, 0.0))\n"
-        ),
-        "project": (
-            "from flowtrack.camera import PinholeCamera, project as _ref_p\n"
-            "def project(X, fx, fy, cx, cy):\n"
-            "    return _ref_p(X, PinholeCamera(fx, fy, cx, cy))\n"
-        ),
-    },
-    "ex02_optical_flow": {
-        "optical_flow": (
-            "def optical_flow(X, V, dt, fx, fy):\n"
-            "    from flowtrack.camera import PinholeCamera, optical_flow_from_scene_flow\n"
-            "    return optical_flow_from_scene_flow(X, V, dt, PinholeCamera(fx, fy, 0.0, 0.0))\n"
-        )
-    },
-    "ex03_gauss_seidel": {
-        "red_black_sweep": (
-            "def red_black_sweep(v, rhs, c, lam):\n"
-            "    from flowtrack.variational import red_black_sweep as ref\n"
-            "    return ref(v.copy(), rhs, c, lam)\n"
-        ),
-        "solve_gauss_seidel": (  # the reference's own red-black sweeps (tol = 0: exactly max_sweeps)
-            "def solve_gauss_seidel(a, b, dt, lam, tol=1e-10, max_sweeps=100000):\n"
-            "    import numpy as np\n"
-            "    from flowtrack.variational import red_black_sweep as ref, solve_component\n"
-            "    if tol > 0:\n"
-            "        return solve_component(a, b, dt, lam)\n"
-            "    v = np.zeros(np.shape(a))\n"
-            "    for _ in range(max_sweeps):\n"
-            "        v = ref(v, dt * (b - a), np.full(np.shape(a), dt**2), lam)\n"
-            "    return v\n"
-        ),
-    },
-    "ex04_graph_scene_flow": {
-        "knn_laplacian": (
-            "def knn_laplacian(points, k, sigma):\n"
-            "    from flowtrack.sceneflow import graph_laplacian, knn_graph\n"
-            "    return graph_laplacian(knn_graph(points, k, sigma)).toarray()\n"
-        ),
-        "graph_scene_flow": (
-            "def graph_scene_flow(points, targets, dt, lam, k, sigma):\n"
-            "    import importlib\n"
-            "    sf = importlib.import_module('flowtrack.sceneflow')\n"
-            "    return sf.graph_scene_flow(points, targets, dt, lam, k, sigma)\n"
-        ),
-    },
-    "ex05_cv_model": {
-        "cv_transition": (
-            "def cv_transition(dt):\n"
-            "    from flowtrack.kalman import constant_velocity_model\n"
-            "    return constant_velocity_model(dt, 1.0, 1.0)[0]\n"
-        ),
-        "cv_process_noise": (
-            "def cv_process_noise(dt, q):\n"
-            "    from flowtrack.kalman import white_noise_acceleration_Q\n"
-            "    return white_noise_acceleration_Q(dt, q)\n"
-        ),
-    },
-    "ex06_kalman_predict_update": {
-        "kf_predict": (
-            "def kf_predict(x, P, F, Q):\n"
-            "    from flowtrack.kalman import KalmanFilter\n"
-            "    kf = KalmanFilter(F, [[0.0] * len(x)], Q, [[1.0]], x, P)\n"
-            "    kf.predict()\n"
-            "    return kf.x, kf.P\n"
-        ),
-        "kf_update": (
-            "def kf_update(x, P, z, H, R):\n"
-            "    from flowtrack.kalman import KalmanFilter\n"
-            "    import numpy as np\n"
-            "    kf = KalmanFilter(np.eye(len(x)), H, np.zeros((len(x), len(x))), R, x, P)\n"
-            "    kf.update(z)\n"
-            "    return kf.x, kf.P\n"
-        ),
-    },
-    "ex07_mahalanobis_gating": {
-        "mahalanobis_cost": ("from flowtrack.association import mahalanobis_cost\n"),
-        "gated_cost": (
-            "def gated_cost(z_pred, S, Z, prob):\n"
-            "    import numpy as np\n"
-            "    from flowtrack.association import chi2_gate, mahalanobis_cost as m\n"
-            "    C = m(z_pred, S, Z)\n"
-            "    return np.where(C <= chi2_gate(z_pred.shape[1], prob), C, np.inf)\n"
-        ),
-    },
-    "ex08_hungarian": {
-        "hungarian": (
-            "def hungarian(cost):\n"
-            "    import numpy as np\n"
-            "    from scipy.optimize import linear_sum_assignment\n"
-            "    return np.column_stack(linear_sum_assignment(cost))\n"
-        )
-    },
-    "ex09_track_management": {
-        "manage_tracks": (
-            "def manage_tracks(frames, min_hits, max_misses):\n"
-            "    import numpy as np\n"
-            "    from flowtrack.tracking import MultiObjectTracker\n"
-            "    trk = MultiObjectTracker(1.0, 1e-4, 1e-2, min_hits=min_hits, max_misses=max_misses)\n"
-            "    out = []\n"
-            "    for labels in frames:\n"
-            "        trk.step(np.array([[50.0 * l, 0.0] for l in labels]).reshape(-1, 2))\n"
-            "        out.append([[t.id, t.status] for t in trk.tracks])\n"
-            "    return out\n"
-        )
-    },
-    "ex10_motion_clustering": {
-        "cluster_tracks": (
-            "def cluster_tracks(points, flow, radius, sigma_v, min_speed):\n"
-            "    import numpy as np\n"
-            "    from flowtrack.clustering import cluster_motion, tracks_from_clusters\n"
-            "    lab = cluster_motion(points, flow, radius, sigma_v, min_speed=min_speed,\n"
-            "                         method='connected', k=len(points), min_size=1)\n"
-            "    t = tracks_from_clusters(points, flow, lab)\n"
-            "    return np.array([c for c, _ in t]), np.array([v for _, v in t])\n"
-        )
-    },
-    "ex12_rgbd_data_term": {
-        "data_term_rows": (
-            "def data_term_rows(X, grad_i, grad_d, fx, fy):\n"
-            "    import numpy as np\n"
-            "    from flowtrack.camera import PinholeCamera, projection_jacobian\n"
-            "    J = projection_jacobian(X, PinholeCamera(fx, fy, 0.0, 0.0))\n"
-            "    a_d = np.einsum('nij,ni->nj', J, grad_d)\n"
-            "    a_d[:, 2] -= 1.0\n"
-            "    return np.einsum('nij,ni->nj', J, grad_i), a_d\n"
-        ),
-        "pixel_normal_equations": (
-            "def pixel_normal_equations(X, grad_i, r_i, grad_d, r_d, fx, fy, w_i, w_d):\n"
-            "    from flowtrack.camera import PinholeCamera\n"
-            "    from flowtrack.rgbd_flow import pixel_normal_equations as ref\n"
-            "    return ref(X, grad_i, r_i, grad_d, r_d, PinholeCamera(fx, fy, 0.0, 0.0), w_i, w_d)\n"
-        ),
-    },
-}
-
-
-WRONG["ex11_concepts"] = {  # Q for [px, py, vx, vy] given for the order [px, vx, py, vy]
-    "q_order": """
-import sympy as sp
-dt, q = sp.symbols("dt q", positive=True)
-G = sp.Matrix([dt**2 / 2, dt])
-return str(sp.kronecker_product(q * G * G.T, sp.eye(2)))
-"""
-}
-# every answer right, but each cell imports the blocked flowtrack.symbolic
-_EX11 = get_exercise("ex11_concepts")
-CHEAT["ex11_concepts"] = {
-    gid: "import flowtrack.symbolic  # blocked\n" + src
-    for gid, src in _answer_sources(_read(_EX11), _EX11).items()
-}
+    return replace_solution(source, body)
 
 
 def _wrong_sources(ex) -> dict[str, str]:
-    src = _answer_sources(_read(ex), ex)
-    for gid, body in WRONG[ex.id].items():
-        src[gid] = _replace_solution(src[gid], body)
-    return src
+    """The exercise's typical wrong answer (its ``cases.py``'s ``WRONG``)."""
+    return answer(_answer_sources(_read(ex), ex), cases(ex.id).WRONG)
 
 
 def _cheat_sources(ex) -> dict[str, str]:
-    src = _answer_sources(_read(ex), ex)
-    src.update(CHEAT[ex.id])
-    return src
+    """Answers that call the blocked reference (its ``cases.py``'s ``CHEAT``)."""
+    return answer(_answer_sources(_read(ex), ex), cases(ex.id).CHEAT)
 
 
 # --------------------------------------------------------------------------------------------------
 # notebooks and registry
 # --------------------------------------------------------------------------------------------------
-def test_registry_lists_the_ten_notebooks():
-    assert [ex.notebook for ex in EXERCISES] == EXPECTED_FILES
-    assert sorted(p.name for p in EXDIR.glob("*.ipynb")) == EXPECTED_FILES
+def test_exercises_are_discovered_from_their_folders():
+    # every folder of exercises/ with a grading module is an exercise, and nothing else is
+    folders = sorted(p.parent.name for p in EXDIR.glob("*/grading.py"))
+    assert IDS == folders and len(folders) >= 12
     assert len(set(IDS)) == len(IDS)
     for ex in EXERCISES:
-        assert ex.id == ex.notebook.removesuffix(".ipynb")
+        assert ex.notebook == f"{ex.id}.ipynb"  # the bundle's and the submissions' file name
+        assert (EXDIR / ex.id / ex.notebook).is_file() and (EXDIR / ex.id / "cases.py").is_file()
+        assert (EXDIR / ex.id / "solution.md").is_file()
         assert get_exercise(ex.id) is ex
-        assert get_exercise(EXDIR / ex.notebook) is ex
+        assert get_exercise(EXDIR / ex.id / ex.notebook) is ex
         assert get_exercise(ex.notebook) is ex
         assert ex.max_score == 10.0
         assert ex.blocked, ex.id
@@ -416,7 +115,7 @@ def test_registry_lists_the_ten_notebooks():
         assert len({t.name for t in ex.tests}) == len(ex.tests)
     with pytest.raises(KeyError, match="no exercise"):
         get_exercise("ex99_nothing")
-    with pytest.raises(TypeError, match="id_or_notebook_path"):
+    with pytest.raises(TypeError, match="looked up by id or notebook path"):
         get_exercise(3)
 
 
@@ -642,7 +341,7 @@ def _echo_notebook(ex, tmp_path) -> Path:
 
 def _grader_inputs(ex, tmp_path, student, public_only=False) -> list[tuple[str, list]]:
     """What `flowtrack grade` (``student``) or `flowtrack check` (None, public only) sends, in order."""
-    from flowtrack_course.grading.grade import run_exercise
+    from flowtrack_course.grading.engine.run import run_exercise
 
     nb = _echo_notebook(ex, tmp_path)
     RecordingSandbox.sent = []
@@ -666,7 +365,7 @@ def _in_process_inputs(ex, student=None, **kwargs) -> list[tuple[str, list]]:
 
 
 def test_in_process_public_inputs_are_those_of_grade_and_check(tmp_path):
-    from flowtrack_course.grading.grade import public_seed
+    from flowtrack_course.grading.engine.seeds import public_seed
 
     ex = _drawing_exercise()
     public = ex.tests[0]
@@ -697,7 +396,7 @@ def test_in_process_public_inputs_are_those_of_grade_and_check(tmp_path):
     [(math.nan, 0.0), (math.inf, 0.0), (-math.inf, 0.0), (-0.5, 0.0), (0.25, 0.25), (1.5, 1.0)],
 )
 def test_in_process_clips_a_scorer_fraction_as_grade_does(tmp_path, fraction, share):
-    from flowtrack_course.grading.grade import run_exercise
+    from flowtrack_course.grading.engine.run import run_exercise
 
     ex = _drawing_exercise(fraction)
     results = run_in_process(ex, {"echo": lambda x: x}, student="alice")
@@ -743,6 +442,7 @@ def test_ex09_tracker_follows_the_stated_rule():
             for _ in range(int(rng.integers(1, 30)))
         ]
         min_hits, max_misses = int(rng.integers(1, 4)), int(rng.integers(0, 5))
+        expected_frames = exercise_module("ex09_track_management").expected_frames
         assert expected_frames(frames, min_hits, max_misses) == _bookkeeping_oracle(
             frames, min_hits, max_misses
         ), trial
@@ -753,7 +453,8 @@ def test_ex12_expected_values_match_the_sympy_data_term():
     import sympy as sp
 
     from flowtrack.symbolic.rgbd import pixel_data_term
-    from flowtrack_course.grading.exercises import ex12_rgbd_data_term as ex12
+
+    ex12 = exercise_module("ex12_rgbd_data_term")
 
     d = pixel_data_term()
     X, Y, Z, fx, fy, Ix, Iy, Dx, Dy, cI, cD = d["symbols"]
@@ -776,7 +477,7 @@ def test_ex12_expected_values_match_the_sympy_data_term():
 
 def test_ex08_expected_optimum_matches_brute_force():
     """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
-    from flowtrack_course.grading.exercises.ex08_hungarian import assignment_check
+    assignment_check = exercise_module("ex08_hungarian").assignment_check
 
     rng = np.random.default_rng(8)
     for _ in range(30):
@@ -804,11 +505,11 @@ def test_ex08_expected_optimum_matches_brute_force():
 # the same, through the grader's sandbox
 # --------------------------------------------------------------------------------------------------
 def _sandbox_score(ex, sources: dict[str, str], student: str = "sandbox-student") -> tuple[float, dict]:
-    from flowtrack_course.grading.sandbox import Sandbox
+    from grading_sandbox import Sandbox
 
     cells = [(gid, sources[gid]) for gid in ex.answer_cells]
     total = 0.0
-    with Sandbox(cells, blocked=ex.blocked) as sb:
+    with Sandbox(cells, blocked=ex.blocked, packages=ex.packages) as sb:
         for t in ex.tests:
             calls, scorer = t.build(np.random.default_rng(student_seed(student, ex.id, t.name)))
             fraction, _ = scorer(sb.run(calls, timeout=t.timeout))
@@ -819,23 +520,23 @@ def _sandbox_score(ex, sources: dict[str, str], student: str = "sandbox-student"
 
 def _sandbox_available() -> bool:
     try:
-        import flowtrack_course.grading.sandbox  # noqa: F401
+        import grading_sandbox  # noqa: F401
     except ImportError:
         return False
     return True
 
 
 needs_sandbox = pytest.mark.skipif(
-    not _sandbox_available(), reason="flowtrack_course.grading.sandbox not importable"
+    not _sandbox_available(), reason="grading_sandbox not importable"
 )
 
 
 @needs_sandbox
 @pytest.mark.parametrize("ex", EXERCISES, ids=IDS)
 def test_sandbox_scores_solution_stub_wrong_and_cheat(ex):
-    from flowtrack_course.grading.notebook import extract_cells
+    from flowtrack_course.grading.engine.notebook import extract_cells
 
-    solution = dict(extract_cells(EXDIR / ex.notebook, ex.answer_cells))
+    solution = dict(extract_cells(source_notebook(ex), ex.answer_cells))
     score, errors = _sandbox_score(ex, solution)
     assert score == pytest.approx(ex.max_score) and not errors
     stub = _answer_sources(_stub_notebook(ex), ex)
@@ -859,7 +560,7 @@ def test_nbgrader_executes_notebook_with_partial_credit():
     ex = get_exercise("ex05_cv_model")
     nb = _read(ex)
     # right for dt < 1 only (the public test uses dt = 0.5): public asserts pass, hidden ones partly
-    partial_body = WRONG[ex.id]["cv_process_noise"].replace(
+    partial_body = cases(ex.id).WRONG["cv_process_noise"][1].replace(
         "Q = np.zeros((4, 4))", "if dt < 1:\n    return np.kron(q1d, np.eye(2))\nQ = np.zeros((4, 4))"
     )
     partial = copy.deepcopy(nb)

@@ -29,11 +29,10 @@ from pathlib import Path
 
 import pytest
 
-from grading_helpers import use_sandbox_mode
+from grading_helpers import get_exercise, source_notebook, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
-ROOT = Path(__file__).resolve().parents[1]
 MiB = 1 << 20
 EXERCISE = "ex05_cv_model"
 TOOLS = ("mkfs.ext4", "losetup", "mount", "umount", "tune2fs")
@@ -110,15 +109,19 @@ _fill()
 DRIVER = """
 import json, sys
 from pathlib import Path
-from flowtrack_course.grading.exercises import get_exercise
-from flowtrack_course.grading.grade import grade_class, grade_student
+from flowtrack_course.grading.engine.jobs import ClassJob, StudentJob
+from flowtrack_course.grading.engine.student import grade_student
+from flowtrack_course.grading.grade import grade_class
+from flowtrack_course.grading.sources import course_catalog
+catalog = course_catalog()
+ex = catalog.get(sys.argv[3])
 if sys.argv[5] == "warm":  # one student, without grade_class's checks: fills the sandbox cache
-    ex = get_exercise(sys.argv[3])
-    print(json.dumps([grade_student(p.name, p, [ex], sys.argv[2]) for p in Path(sys.argv[1]).iterdir()]))
+    jobs = [StudentJob(p.name, p, Path(sys.argv[2]), (ex,)) for p in Path(sys.argv[1]).iterdir()]
+    print(json.dumps([grade_student(job) for job in jobs]))
     sys.exit()
 try:
-    rows = grade_class(sys.argv[1], sys.argv[2], jobs=2, exercises=[get_exercise(sys.argv[3])],
-                       progress=False, allow_unsafe_sandbox=sys.argv[4] == "1")
+    rows = grade_class(ClassJob(sys.argv[1], sys.argv[2], catalog=catalog, jobs=2, exercises=(ex,),
+                                progress=False, allow_unsafe_sandbox=sys.argv[4] == "1"))
 except Exception as exc:
     print(json.dumps({"refused": f"{type(exc).__name__}: {exc}"}))
 else:
@@ -127,12 +130,10 @@ else:
 
 
 def _class(root: Path, names: list[str], attacker: str | None = None) -> Path:
-    from flowtrack_course.grading.exercises import get_exercise
-
     ex = get_exercise(EXERCISE)
     for name in names:
         (root / name).mkdir(parents=True)
-        shutil.copy(ROOT / "exercises" / ex.notebook, root / name / ex.notebook)
+        shutil.copy(source_notebook(ex), root / name / ex.notebook)
     if attacker:
         nb = json.loads((root / attacker / ex.notebook).read_text())
         cell = next(c for c in nb["cells"]
@@ -172,8 +173,6 @@ def _entries(fs: Path, skip: set[str]) -> set[str]:
 @pytest.mark.parametrize("mode", ["bwrap", "setpriv", "fallback"])
 def test_a_disk_filler_on_a_small_filesystem_leaves_the_next_run_whole(mode, small_fs, monkeypatch,
                                                                        tmp_path, tmp_path_factory):
-    from flowtrack_course.grading.exercises import get_exercise
-
     fs, dev = small_fs
     full = get_exercise(EXERCISE).max_score
     use_sandbox_mode(mode, monkeypatch, tmp_path_factory)
@@ -231,7 +230,7 @@ def test_a_disk_filler_on_a_small_filesystem_leaves_the_next_run_whole(mode, sma
 
 
 def test_the_reserve_check_needs_a_shared_filesystem_and_too_little_room(tmp_path):
-    from flowtrack_course.grading.isolation import disk_reserve_problem
+    from grading_sandbox.isolation import disk_reserve_problem
 
     work, out = tmp_path / "work", tmp_path / "out" / "not-yet"  # out: its nearest existing ancestor
     work.mkdir()

@@ -1,7 +1,7 @@
-"""Attacks through ex11's formula answers (issue 16): the text is parsed inside the sandbox.
+"""Attacks through ex11's formula answers: the text is parsed inside the sandbox.
 
 A formula answer (``q_order()`` returns ``"Matrix([[...]])"``) is parsed by an :mod:`ast` whitelist
-and evaluated with sympy in the sandboxed child (:mod:`flowtrack_course.grading._formula`); only
+and evaluated with sympy in the sandboxed child (:mod:`grading_sandbox.formula`); only
 numbers come back. Each attack below - a huge exponent, deep nesting, ``__import__``, attribute
 walks, very long strings, exact numbers that explode, a formula that passes the whitelist but
 keeps sympy busy for ever, forged replies - scores 0 as a wrong answer (or a time-out) and leaves
@@ -14,15 +14,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flowtrack_course.grading.exercises import get_exercise
-from flowtrack_course.grading.exercises.ex11_concepts import _ex11_q
-from flowtrack_course.grading.exercises.symbolic_answers import formula_request, values_of
-from flowtrack_course.grading.sandbox import Limits, Sandbox
-from flowtrack_course.grading.spec import Call, Outcome, public_seed
+from flowtrack_course.grading.engine.seeds import public_seed
+from flowtrack_course.grading.engine.symbolic import formula_request, values_of
+from grading_helpers import exercise_module, get_exercise
+from grading_sandbox import Call, Limits, Outcome, Sandbox
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
 EX = get_exercise("ex11_concepts")
+_ex11_q = exercise_module("ex11_concepts")._ex11_q
 LIMITS = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16)
 RIGHT = (
     "Matrix([[dt**4*q/4, dt**3*q/2, 0, 0], [dt**3*q/2, dt**2*q, 0, 0], "
@@ -58,7 +58,8 @@ def _q_test():
 
 @pytest.fixture(scope="module")
 def box():
-    with Sandbox([("q_order", CELL)], blocked=EX.blocked, allowed=EX.allowed, limits=LIMITS) as sb:
+    with Sandbox([("q_order", CELL)], blocked=EX.blocked, allowed=EX.allowed, packages=EX.packages,
+                 limits=LIMITS) as sb:
         yield sb
 
 
@@ -94,7 +95,7 @@ def test_the_grader_process_never_parses_formula_text(box, monkeypatch):
     import sympy
     import sympy.parsing.sympy_parser as sympy_parser
 
-    from flowtrack_course.grading import _formula
+    from grading_sandbox import formula as _formula
 
     def refuse(*args, **kwargs):
         raise AssertionError("the grader process parsed formula text")

@@ -1,4 +1,4 @@
-"""Issue 17's library calls: an exercise's allowlist of imports decides what a student may call.
+"""Library calls: an exercise's allowlist of imports decides what a student may call.
 
 The red team solved exercises with a library that does the work (networkx's matching for the
 Hungarian algorithm, filterpy's Kalman filter, flowtrack's own Mahalanobis distance, scipy's sparse
@@ -13,15 +13,13 @@ from pathlib import Path
 
 import pytest
 
-from flowtrack_course.grading.exercises import EXERCISES, get_exercise
-from flowtrack_course.grading.grade import run_exercise
-from flowtrack_course.grading.sandbox import Limits, Sandbox
-from flowtrack_course.grading.spec import Call
-from grading_helpers import SANDBOX_MODES, use_sandbox_mode
+from flowtrack_course.grading.engine.jobs import GradingOptions
+from flowtrack_course.grading.engine.run import run_exercise
+from grading_helpers import EXERCISES, SANDBOX_MODES, get_exercise, source_notebook, use_sandbox_mode
+from grading_sandbox import Call, Limits, Sandbox
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
-REPO = Path(__file__).resolve().parents[1]
 LIMITS = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16)
 
 
@@ -43,7 +41,7 @@ def _may_import(notebook: Path) -> tuple[str, ...]:
 @pytest.mark.parametrize("ex", EXERCISES, ids=lambda e: e.id)
 def test_notebook_import_line_is_the_allowlist(ex):
     assert ex.allowed and ex.allowed[0] == "numpy"
-    assert _may_import(REPO / "exercises" / ex.notebook) == ex.allowed
+    assert _may_import(source_notebook(ex)) == ex.allowed
 
 
 # exercise, the cheat's import, its answer cells (defining every answer function)
@@ -83,13 +81,15 @@ def _notebook(tmp_path, ex, source):
 @pytest.mark.parametrize("ex_id, module, source", CHEATS, ids=[c[0] for c in CHEATS])
 def test_library_calls_fail_on_import(mode, ex_id, module, source, tmp_path):
     ex = get_exercise(ex_id)
-    with Sandbox([("a", source)], blocked=ex.blocked, allowed=ex.allowed, limits=LIMITS) as sb:
+    with Sandbox([("a", source)], blocked=ex.blocked, allowed=ex.allowed, packages=ex.packages,
+                 limits=LIMITS) as sb:
         (out,) = sb.run([Call(ex.answer_cells[0])], timeout=20)  # the cell failed: not defined
         assert not out.ok
         err = sb.cell_errors["a"]
     assert f"{module} is not available in this exercise" in err, err
     assert "you may import: " + ", ".join(ex.allowed) in err, err
-    result = run_exercise(ex, _notebook(tmp_path, ex, source), "mallory", limits=LIMITS)
+    notebook = _notebook(tmp_path, ex, source)
+    result = run_exercise(ex, notebook, "mallory", options=GradingOptions(limits=LIMITS))
     assert result.score == 0.0
     assert any("not available in this exercise" in p for p in result.problems), result.problems
 

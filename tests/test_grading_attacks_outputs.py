@@ -11,26 +11,24 @@ import shutil
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from flowtrack_course.grading.exercises import get_exercise
-from flowtrack_course.grading.grade import (
-    RESERVED_NAMES,
-    UnsafeSandbox,
-    feedback_markdown,
-    grade_class,
-    results_json,
-    run_exercise,
-)
-from flowtrack_course.grading.notebook import NotebookError, extract_cells
-from flowtrack_course.grading.sandbox import Limits, bwrap_status
-from flowtrack_course.grading.spec import Outcome
-from grading_helpers import RecordingSandbox
+from flowtrack_course.grading.engine.classrun import RESERVED_NAMES, UnsafeSandbox
+from flowtrack_course.grading.engine.compare import compare_arrays
+from flowtrack_course.grading.engine.jobs import GradingOptions
+from flowtrack_course.grading.engine.notebook import NotebookError, extract_cells
+from flowtrack_course.grading.engine.results import feedback_markdown, results_json
+from flowtrack_course.grading.engine.run import run_exercise
+from flowtrack_course.grading.engine.spec import Outcome
+from flowtrack_course.grading.grade import grade_class
+from grading_helpers import RecordingSandbox, class_job, get_exercise, source_notebook
+from grading_sandbox import Limits, bwrap_status
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
-ROOT = Path(__file__).resolve().parents[1]
 EX = get_exercise("ex05_cv_model")
+SOLUTION = source_notebook(EX)
 LIMITS = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16)
 
 
@@ -62,13 +60,13 @@ def _outside_fences(markdown: str) -> list[str]:
 def test_grade_refuses_the_fallback_unless_forced(tmp_path, monkeypatch):
     monkeypatch.setenv("FLOWTRACK_SANDBOX", "fallback")
     (tmp_path / "subs" / "ann").mkdir(parents=True)
-    shutil.copy(ROOT / "exercises" / EX.notebook, tmp_path / "subs" / "ann" / EX.notebook)
+    shutil.copy(SOLUTION, tmp_path / "subs" / "ann" / EX.notebook)
     with pytest.raises(UnsafeSandbox, match="allow-unsafe-sandbox") as info:
-        grade_class(tmp_path / "subs", tmp_path / "out", exercises=[EX], progress=False)
+        grade_class(class_job(tmp_path / "subs", tmp_path / "out", exercises=[EX], progress=False))
     assert "submissions" in str(info.value) and "seed key" in str(info.value)  # says what it loses
     assert not (tmp_path / "out" / "grades.csv").exists()
-    rows = grade_class(tmp_path / "subs", tmp_path / "out", exercises=[EX], progress=False,
-                       allow_unsafe_sandbox=True)
+    rows = grade_class(class_job(tmp_path / "subs", tmp_path / "out", exercises=[EX], progress=False,
+                       allow_unsafe_sandbox=True))
     assert rows[0]["score"] == EX.max_score and rows[0]["isolation"].startswith("fallback")
 
 
@@ -80,7 +78,7 @@ def test_fallback_copycat_and_key_reader_are_refused(tmp_path, monkeypatch):
     key.write_bytes(b"k" * 32)
     ann = subs / "ann" / EX.notebook
     ann.parent.mkdir(parents=True)
-    shutil.copy(ROOT / "exercises" / EX.notebook, ann)  # the full solution
+    shutil.copy(SOLUTION, ann)  # the full solution
     copycat = f"""
 import json
 nb = json.load(open({str(ann)!r}))
@@ -91,7 +89,8 @@ for c in nb["cells"]:
     reader = f"SECRET = open({str(key)!r}, 'rb').read()\n"
     for attack in (copycat, reader):
         nb = _notebook_with(attack, subs / "mallory" / EX.notebook)
-        r = run_exercise(EX, nb, "mallory", limits=LIMITS, hidden_paths=(subs, out, key))
+        options = GradingOptions(limits=LIMITS, hidden_paths=(subs, out, key))
+        r = run_exercise(EX, nb, "mallory", options=options)
         assert r.score == 0.0, r
         assert any("not accessible from the sandbox" in p for p in r.problems), r.problems
 
@@ -125,6 +124,7 @@ def test_a_broken_notebook_is_parsed_once(tmp_path, monkeypatch):
     data = json.loads(nb.read_text())
     del data["cells"][1]  # one answer cell missing: the others are still graded
     nb.write_text(json.dumps(data))
+    run_exercise(EX, nb, "mallory", sandbox_factory=RecordingSandbox)  # imports on first use not counted
     calls = []
     real_loads = json.loads
     monkeypatch.setattr(json, "loads", lambda s, *a, **k: calls.append(1) or real_loads(s, *a, **k))
@@ -140,7 +140,7 @@ def _class_with(tmp_path, names):
     subs = tmp_path / "subs"
     for name in names:
         (subs / name).mkdir(parents=True)
-        shutil.copy(ROOT / "exercises" / EX.notebook, subs / name / EX.notebook)
+        shutil.copy(SOLUTION, subs / name / EX.notebook)
     return subs
 
 
@@ -148,8 +148,8 @@ def test_student_folders_named_like_the_outputs(tmp_path):
     assert {"grades.csv", "gradebook.db"} <= RESERVED_NAMES
     subs = _class_with(tmp_path, ["ann", "grades.csv", "gradebook.db"])
     out = tmp_path / "out"
-    rows = {r["student"]: r for r in grade_class(subs, out, exercises=[EX], progress=False,
-                                                  sandbox_factory=RecordingSandbox)}
+    rows = {r["student"]: r for r in grade_class(class_job(subs, out, exercises=[EX], progress=False,
+                                                  sandbox_factory=RecordingSandbox))}
     assert "reserved" in rows["grades.csv"]["error"] and "reserved" in rows["gradebook.db"]["error"]
     assert "error" not in rows["ann"]
     assert (out / "grades.csv").is_file() and (out / "gradebook.db").is_file()
@@ -175,8 +175,8 @@ class _EvilSandbox(RecordingSandbox):
 def test_error_text_cannot_break_or_forge_the_feedback(tmp_path):
     subs = _class_with(tmp_path, ["ann", "mallory"])
     out = tmp_path / "out"
-    rows = {r["student"]: r for r in grade_class(subs, out, exercises=[EX], progress=False,
-                                                  sandbox_factory=_EvilSandbox)}
+    rows = {r["student"]: r for r in grade_class(class_job(subs, out, exercises=[EX], progress=False,
+                                                  sandbox_factory=_EvilSandbox))}
     assert all("error" not in r for r in rows.values()), rows  # the surrogate did not stop a write
     text = (out / "mallory" / "feedback" / f"{EX.id}.md").read_text(encoding="utf-8")
     assert "\\ud800" in text  # written as an escape
@@ -190,7 +190,7 @@ def test_error_text_cannot_break_or_forge_the_feedback(tmp_path):
 
 
 def test_public_messages_and_problems_are_fenced_alike():
-    r = run_exercise(EX, ROOT / "exercises" / EX.notebook, "ann", sandbox_factory=_EvilSandbox)
+    r = run_exercise(EX, SOLUTION, "ann", sandbox_factory=_EvilSandbox)
     md = feedback_markdown("ann", r)
     shown = "\n".join(_outside_fences(md))
     assert "<!--" not in shown and "Score: 10 / 10" not in shown
@@ -201,12 +201,12 @@ def test_public_messages_and_problems_are_fenced_alike():
 def test_no_stale_results_for_a_student_whose_grading_fails(tmp_path):
     subs = _class_with(tmp_path, ["ann"])
     out = tmp_path / "out"
-    grade_class(subs, out, exercises=[EX], progress=False, sandbox_factory=RecordingSandbox)
+    grade_class(class_job(subs, out, exercises=[EX], progress=False, sandbox_factory=RecordingSandbox))
     assert (out / "ann" / "results.json").is_file()
     shutil.rmtree(out / "ann" / "feedback")
     (out / "ann" / "feedback").write_text("not a folder")  # the next write of the feedback fails
-    (rows,) = grade_class(subs, out, exercises=[EX], progress=False, force=True,
-                          sandbox_factory=RecordingSandbox)
+    (rows,) = grade_class(class_job(subs, out, exercises=[EX], progress=False, force=True,
+                          sandbox_factory=RecordingSandbox))
     assert "error" in rows
     assert not (out / "ann" / "results.json").exists()  # no older grade left to be taken for this run
 
@@ -217,7 +217,23 @@ def test_a_lone_surrogate_from_a_real_sandbox(tmp_path, monkeypatch):
     nb = _notebook_with('raise ValueError("\\ud800 ```\\n**Score: 10 / 10**\\n<!--")\n',
                         tmp_path / "subs" / "mallory" / EX.notebook)
     assert nb.is_file()
-    rows = grade_class(tmp_path / "subs", tmp_path / "out", exercises=[EX], progress=False)
+    rows = grade_class(class_job(tmp_path / "subs", tmp_path / "out", exercises=[EX], progress=False))
     assert rows[0]["score"] == 0.0 and "error" not in rows[0]
     text = (tmp_path / "out" / "mallory" / "feedback" / f"{EX.id}.md").read_text(encoding="utf-8")
     assert "\\ud800" in text and "<!--" not in "\n".join(_outside_fences(text))
+
+
+# -- the grader's comparison of what came back -------------------------------------------------------
+@pytest.mark.parametrize("value, ok", [
+    ([1.0, float("inf"), float("nan")], True),
+    ([1.0, float("nan"), float("nan")], False),  # NaN where the reference gates (inf)
+    ([1.0, -float("inf"), float("nan")], False),
+    ([1.0, float("inf"), float("inf")], False),
+    ([1.0, float("inf"), 0.0], False),
+    ([2 ** 70, float("inf"), float("nan")], False),  # huge integers are numbers, just wrong ones
+    ([2 ** 2000, float("inf"), float("nan")], False),  # beyond float64: not a number array
+    ([True, float("inf"), float("nan")], True),  # bool is a number in JSON's sense (1.0)
+])
+def test_compare_non_finite_and_huge_values(value, ok):
+    expected = np.array([1.0, np.inf, np.nan])
+    assert compare_arrays(Outcome(True, value), expected)[0] is ok

@@ -25,12 +25,12 @@ import pytest
 nbformat = pytest.importorskip("nbformat")
 pytest.importorskip("nbgrader")
 
+from flowtrack_course.grading.assign.release import release, release_notebook  # noqa: E402
 from flowtrack_course.grading.check import check_notebook  # noqa: E402
-from flowtrack_course.grading.exercises import EXERCISES, get_exercise  # noqa: E402
-from flowtrack_course.grading.grade import grade_class, public_seed  # noqa: E402
-from flowtrack_course.grading.gradebook import grade_cells, notebook_name  # noqa: E402
-from flowtrack_course.grading.release import release, release_notebook  # noqa: E402
-from flowtrack_course.grading.spec import student_seed  # noqa: E402
+from flowtrack_course.grading.engine.seeds import public_seed, student_seed  # noqa: E402
+from flowtrack_course.grading.export.gradebook import grade_cells, notebook_name  # noqa: E402
+from flowtrack_course.grading.grade import grade_class  # noqa: E402
+from grading_helpers import EXERCISES, class_job, get_exercise, source_notebook  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("grading_commands")
 
@@ -44,7 +44,7 @@ HIDDEN_BLOCK = re.compile(r"### BEGIN HIDDEN TESTS\n(.*?)### END HIDDEN TESTS", 
 
 
 def _source_nb(ex):
-    return nbformat.read(EXDIR / ex.notebook, as_version=4)
+    return nbformat.read(source_notebook(ex), as_version=4)
 
 
 def _write(nb, path: Path) -> None:
@@ -173,7 +173,7 @@ def test_release_has_no_dead_links_into_solutions(bundle):
 def test_check_solution_passes_and_stub_fails(bundle, capsys):
     out, _ = bundle
     ex = SUBSET[1]
-    assert check_notebook(EXDIR / ex.notebook) == 0
+    assert check_notebook(source_notebook(ex)) == 0
     text = capsys.readouterr().out
     public = [t for t in ex.tests if not t.hidden]
     assert f"public score: {sum(t.points for t in public):g} / {sum(t.points for t in public):g}" in text
@@ -244,7 +244,7 @@ def _make_class(root: Path, bundle_dir: Path) -> dict[str, float]:
 def graded(bundle, tmp_path_factory):
     root = tmp_path_factory.mktemp("class")
     exact = _make_class(root, bundle[0])
-    rows = grade_class(root / "subs", root / "out", jobs=2, exercises=SUBSET, progress=False)
+    rows = grade_class(class_job(root / "subs", root / "out", jobs=2, exercises=SUBSET, progress=False))
     return root, exact, {r["student"]: r for r in rows}
 
 
@@ -320,7 +320,7 @@ def test_gradebook_exports_through_nbgrader(graded, tmp_path):
     from nbgrader.api import Gradebook
     from nbgrader.plugins import CsvExportPlugin
 
-    from flowtrack_course.grading.gradebook import _alembic_on_path
+    from flowtrack_course.grading.export.gradebook import _alembic_on_path
 
     root, _, _ = graded
     dest = tmp_path / "export.csv"
@@ -344,7 +344,7 @@ def test_gradebook_is_stamped_with_nbgraders_alembic_head():
     """The revision read from nbgrader's migration files is the one ``alembic heads`` reports."""
     import nbgrader.api
 
-    from flowtrack_course.grading.gradebook import _alembic_head
+    from flowtrack_course.grading.export.gradebook import _alembic_head
 
     exe = Path(sys.executable).parent / "alembic"
     if not exe.exists():
@@ -368,25 +368,26 @@ def test_regrade_is_idempotent_and_restart_keeps_finished_students(bundle, tmp_p
     # a run killed halfway: ann finished, ben's results.json truncated, a stray temp file
     only_ann = tmp_path / "only_ann"
     shutil.copytree(subs / "ann", only_ann / "ann")
-    grade_class(only_ann, out, exercises=[ex], progress=False)
+    grade_class(class_job(only_ann, out, exercises=[ex], progress=False))
     (out / "ben").mkdir()
     (out / "ben" / "results.json").write_text('{"score": 99, "tes')
     (out / "cat" / "feedback").mkdir(parents=True)
     (out / "cat" / ".results.json.x.tmp").write_text("partial")
     ann_before = (out / "ann" / "results.json").read_bytes()
-    rows = {r["student"]: r for r in grade_class(subs, out, exercises=[ex], progress=False)}
+    rows = {r["student"]: r for r in grade_class(class_job(subs, out, exercises=[ex], progress=False))}
     assert rows["ann"]["skipped"] and not rows["ben"]["skipped"] and not rows["cat"]["skipped"]
     assert (out / "ann" / "results.json").read_bytes() == ann_before
     assert rows["ben"]["score"] == 0 and rows["cat"]["score"] == ex.max_score
     snapshot = {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.suffix != ".db"}
-    again = grade_class(subs, out, exercises=[ex], progress=False)
+    again = grade_class(class_job(subs, out, exercises=[ex], progress=False))
     assert all(r["skipped"] for r in again)
     assert {p: p.read_bytes() for p in snapshot} == snapshot
     # a changed submission is re-graded; --force re-grades everyone
     _write(_source_nb(ex), subs / "ben" / ex.notebook)
-    rows = {r["student"]: r for r in grade_class(subs, out, exercises=[ex], progress=False)}
+    rows = {r["student"]: r for r in grade_class(class_job(subs, out, exercises=[ex], progress=False))}
     assert not rows["ben"]["skipped"] and rows["ben"]["score"] == ex.max_score and rows["ann"]["skipped"]
-    assert not any(r["skipped"] for r in grade_class(subs, out, exercises=[ex], force=True, progress=False))
+    again = grade_class(class_job(subs, out, exercises=[ex], force=True, progress=False))
+    assert not any(r["skipped"] for r in again)
 
 
 def test_grade_command_line_on_all_exercises(bundle, tmp_path, capsys):
@@ -442,7 +443,7 @@ def test_an_attacking_student_cannot_forge_grades_or_stop_the_run(tmp_path):
     cell.source = ATTACK.format(targets=targets, name=name)
     _write(nb, subs / "mallory" / ex.notebook)
     before = (subs / "ann" / ex.notebook).read_bytes()
-    rows = {r["student"]: r for r in grade_class(subs, out, exercises=[ex], progress=False)}
+    rows = {r["student"]: r for r in grade_class(class_job(subs, out, exercises=[ex], progress=False))}
     assert rows["mallory"]["score"] == 0 and rows["ann"]["score"] == ex.max_score
     table = {r["student"]: float(r["total"]) for r in _csv(out / "grades.csv")}
     assert table == {"ann": ex.max_score, "mallory": 0.0}
@@ -452,7 +453,7 @@ def test_an_attacking_student_cannot_forge_grades_or_stop_the_run(tmp_path):
 
 
 def test_grade_warns_when_the_sandbox_falls_back(tmp_path):
-    from flowtrack_course.grading.sandbox import Sandbox
+    from grading_sandbox import Sandbox
 
     class FallbackSandbox(Sandbox):
         def __init__(self, *args, **kwargs):
@@ -462,20 +463,20 @@ def test_grade_warns_when_the_sandbox_falls_back(tmp_path):
     ex = SUBSET[0]
     _write(_source_nb(ex), tmp_path / "subs" / "ann" / ex.notebook)
     lines = []
-    rows = grade_class(tmp_path / "subs", tmp_path / "out", exercises=[ex], progress=False, log=lines.append,
-                       sandbox_factory=FallbackSandbox)
+    rows = grade_class(class_job(tmp_path / "subs", tmp_path / "out", exercises=[ex], progress=False,
+                                 log=lines.append, sandbox_factory=FallbackSandbox))
     assert rows[0]["score"] == ex.max_score
     assert [ln for ln in lines if ln.startswith("warning:") and "pretend bubblewrap" in ln]
 
 
 def test_grade_rejects_bad_arguments(tmp_path):
     with pytest.raises(FileNotFoundError, match="submissions"):
-        grade_class(tmp_path / "nope", tmp_path / "out", progress=False)
+        grade_class(class_job(tmp_path / "nope", tmp_path / "out", progress=False))
     (tmp_path / "subs" / "bad name").mkdir(parents=True)
     with pytest.raises(ValueError, match="submissions"):
-        grade_class(tmp_path / "subs", tmp_path / "out", progress=False)
+        grade_class(class_job(tmp_path / "subs", tmp_path / "out", progress=False))
     with pytest.raises(ValueError, match="jobs"):
-        grade_class(tmp_path / "subs", tmp_path / "out", jobs=0, progress=False)
+        grade_class(class_job(tmp_path / "subs", tmp_path / "out", jobs=0, progress=False))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -483,7 +484,7 @@ def test_grade_rejects_bad_arguments(tmp_path):
 
 
 def test_gradescope_zip_runs_the_same_grader(tmp_path):
-    from flowtrack_course.grading.gradescope import build_autograder
+    from flowtrack_course.grading.export.gradescope import build_autograder
 
     zpath = build_autograder(tmp_path / "autograder.zip")
     unpacked = tmp_path / "source"
@@ -493,10 +494,13 @@ def test_gradescope_zip_runs_the_same_grader(tmp_path):
         modes = {i.filename: (i.external_attr >> 16) for i in zf.infolist()}
     assert {"setup.sh", "run_autograder", "flowtrack/pyproject.toml"} <= set(names)
     assert modes["setup.sh"] & stat.S_IXUSR and modes["run_autograder"] & stat.S_IXUSR
-    # no course folder (exercise notebooks, solutions) in the zip; the grader's own package
-    # grading/exercises/ (the trusted tests) is what the zip is for
+    # no course folder (exercise notebooks, solutions) in the zip; the exercises' grading modules
+    # (the trusted tests) are what the zip is for, and nothing else of their folders
     course = ("exercises/", "solutions/", "flowtrack/exercises/", "flowtrack/solutions/")
     assert not any(n.startswith(course) or n.endswith(".ipynb") for n in names)
+    assert {f"course/exercises/{ex.id}/grading.py" for ex in EXERCISES} <= set(names)
+    assert not any(n.endswith((".md", "/cases.py")) for n in names if n.startswith("course/"))
+    assert any(n.startswith("flowtrack/reference_impl/grading_sandbox/") for n in names)
     setup = (unpacked / "setup.sh").read_text()
     assert "bubblewrap" in setup
     # student code runs as an unprivileged uid: it must be able to read the venv (numpy)
@@ -530,13 +534,13 @@ def test_gradescope_zip_runs_the_same_grader(tmp_path):
 def test_a_submitted_link_leading_outside_the_submission_is_not_read(tmp_path):
     # bob's "notebook" is a link to alice's (or to a file of the grading machine): never graded as
     # his; a link inside his own folder is fine.
-    from flowtrack_course.grading.grade import locate_notebook
+    from flowtrack_course.grading.engine.student import locate_notebook
 
     ex = get_exercise("ex02_optical_flow")
     alice, bob, carol = (tmp_path / n for n in ("alice", "bob", "carol"))
     for d in (alice, bob, carol):
         d.mkdir()
-    shutil.copy(EXDIR / ex.notebook, alice / ex.notebook)
+    shutil.copy(source_notebook(ex), alice / ex.notebook)
     (bob / ex.notebook).symlink_to(alice / ex.notebook)
     (bob / "sub").mkdir()
     (bob / "sub" / ex.notebook).symlink_to("/etc/hostname")
@@ -551,8 +555,8 @@ def test_a_submitted_link_leading_outside_the_submission_is_not_read(tmp_path):
 def test_hidden_inputs_cannot_leak_through_a_later_public_test(tmp_path):
     # The student's function remembers every input and raises them in its next call: a public test
     # run after a hidden one would show the hidden inputs in its message.
-    from flowtrack_course.grading.grade import run_exercise
-    from flowtrack_course.grading.spec import Call, Exercise, GradedTest
+    from flowtrack_course.grading.engine.run import run_exercise
+    from flowtrack_course.grading.engine.spec import Call, Exercise, GradedTest
 
     def build(values):
         def b(rng):

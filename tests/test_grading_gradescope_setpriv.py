@@ -24,11 +24,10 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from flowtrack_course.grading.exercises import get_exercise
-from flowtrack_course.grading.gradescope import build_autograder
-from flowtrack_course.grading.isolation import readable_by_sandbox
-from flowtrack_course.grading.release import release_notebook
-from grading_helpers import use_sandbox_mode
+from flowtrack_course.grading.assign.release import release_notebook
+from flowtrack_course.grading.export.gradescope import build_autograder
+from grading_helpers import get_exercise, source_notebook, use_sandbox_mode
+from grading_sandbox import readable_by_sandbox
 
 pytestmark = [
     pytest.mark.xdist_group("sandbox"),
@@ -46,7 +45,7 @@ ROOT = {root!r}
 top = os.open("/", os.O_RDONLY)
 report = []
 for p in [ROOT + "/source/secret", ROOT + "/submission_metadata.json",
-          ROOT + "/source/flowtrack/reference_impl/flowtrack_course/grading/exercises/ex05_cv_model.py",
+          ROOT + "/source/course/exercises/ex05_cv_model/grading.py",
           ROOT + "/results/results.json"]:
     try:
         fd = os.open(p.lstrip("/"), os.O_RDONLY, dir_fd=top)
@@ -96,7 +95,7 @@ def autograder(tmp_path, monkeypatch, tmp_path_factory):
         os.chmod(root / "source", 0o755)
         sub = root / "submission"
         sub.mkdir(mode=0o755)
-        stub = release_notebook(nbformat.read(REPO / "exercises" / EX.notebook, as_version=4))
+        stub = release_notebook(nbformat.read(source_notebook(EX), as_version=4))
         for c in stub.cells:
             if c.get("metadata", {}).get("nbgrader", {}).get("grade_id") == EX.answer_cells[0]:
                 c.source = ATTACK.format(root=str(root)) + "".join(c.source)
@@ -142,7 +141,7 @@ def test_gradescope_refuses_to_grade_when_the_sandbox_could_read_the_key(autogra
     assert readable_by_sandbox([exposed, secret]) == [str(exposed)]  # 0600 root: unreadable
     results = tmp_path / "results.json"
     r = subprocess.run(
-        [sys.executable, "-m", "flowtrack_course.grading.gradescope", "run", "--submission",
+        [sys.executable, "-m", "flowtrack_course.grading.grade.gradescope", "run", "--submission",
          str(root / "submission"), "--results", str(results), "--student", "4242", "--exercises", "ex05",
          "--secret-file", str(exposed)],
         capture_output=True, text=True, timeout=300, env=dict(os.environ),

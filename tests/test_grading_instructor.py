@@ -25,11 +25,16 @@ import pytest
 
 nbformat = pytest.importorskip("nbformat")
 
-from flowtrack_course.grading import classreport, layout, lms  # noqa: E402
-from flowtrack_course.grading.instructor import run_grade  # noqa: E402
-from flowtrack_course.grading.keys import InsecureKeyError, check_key_file  # noqa: E402
-from flowtrack_course.grading.spec import Call, Exercise, GradedTest, Outcome  # noqa: E402
-from grading_helpers import StandInSandbox  # noqa: E402
+from flowtrack_course.grading.engine import layout  # noqa: E402
+from flowtrack_course.grading.engine.spec import Call, Exercise, GradedTest, Outcome  # noqa: E402
+from flowtrack_course.grading.export import classreport, lms  # noqa: E402
+from flowtrack_course.grading.grade.keys import InsecureKeyError, check_key_file  # noqa: E402
+from grading_helpers import (  # noqa: E402
+    StandInSandbox,
+    get_exercise,
+    run_grade_with,
+    source_notebook,
+)
 
 pytestmark = pytest.mark.xdist_group("grading_instructor")
 
@@ -83,7 +88,7 @@ def _nb(path: Path, ex: Exercise, text: str) -> Path:
 def _run(subs, out, **kw):
     lines: list[str] = []
     kw.setdefault("exercises", COURSE)
-    run = run_grade(subs, out, progress=False, log=lines.append, sandbox_factory=MarkerSandbox, **kw)
+    run = run_grade_with(subs, out, progress=False, log=lines.append, sandbox_factory=MarkerSandbox, **kw)
     return run, lines
 
 
@@ -224,13 +229,13 @@ def test_cli_grade_exits_nonzero_on_a_flat_layout(tmp_path, capsys):
 
 
 def test_check_suggests_the_rename_of_an_lms_copy(tmp_path, capsys):
-    from flowtrack_course.grading import check as check_mod
+    from flowtrack_course.grading.check import check as check_mod
 
     calls = []
 
     def fake_run(exercise, path, student, *, public_only=False, **kw):
         calls.append((exercise.id, Path(path).name, public_only))
-        from flowtrack_course.grading.grade import ExerciseResult
+        from flowtrack_course.grading.engine.results import ExerciseResult
 
         return ExerciseResult(exercise.id, exercise.title, exercise.notebook)
 
@@ -357,7 +362,7 @@ def test_grade_with_roster_and_lms_fills_gradebook_and_writes_canvas_csv(tmp_pat
     pytest.importorskip("nbgrader")
     from nbgrader.api import Gradebook
 
-    from flowtrack_course.grading.gradebook import _alembic_on_path
+    from flowtrack_course.grading.export.gradebook import _alembic_on_path
 
     run, _ = _graded_class(tmp_path, roster=_roster(tmp_path), lms="canvas", lms_mode="exercises")
     assert run.status == 0 and (tmp_path / "out" / "canvas.csv").is_file()
@@ -416,7 +421,7 @@ def test_a_key_others_can_read_is_refused_with_the_fix(tmp_path):
 
 
 def test_gradescope_bundle_refuses_a_world_readable_key(tmp_path):
-    from flowtrack_course.grading.gradescope import build_autograder
+    from flowtrack_course.grading.export.gradescope import build_autograder
 
     key = tmp_path / "key"
     key.write_bytes(os.urandom(32))
@@ -539,7 +544,7 @@ def test_score_distribution_agrees_with_numpy():
 
 
 def _unpack(tmp_path: Path, **kw) -> Path:
-    from flowtrack_course.grading.gradescope import build_autograder
+    from flowtrack_course.grading.export.gradescope import build_autograder
 
     z = build_autograder(tmp_path / "ag.zip", **kw)
     dest = tmp_path / "source"
@@ -631,7 +636,7 @@ def test_missing_metadata_is_an_explicit_error(tmp_path):
     data = _run_autograder(src, ag, sys.executable)
     assert data["score"] == 0 and "submission_metadata.json" in data["output"]
     assert data["extra_data"]["flowtrack"]["error"]
-    from flowtrack_course.grading.gradescope import MetadataError, student_from_metadata
+    from flowtrack_course.grading.grade.gradescope import MetadataError, student_from_metadata
 
     (tmp_path / "m.json").write_text(json.dumps({"users": []}))
     with pytest.raises(MetadataError, match="names no submitter"):
@@ -643,7 +648,7 @@ def test_missing_metadata_is_an_explicit_error(tmp_path):
 def test_bundle_grades_only_its_exercises(tmp_path):
     src = _unpack(tmp_path, exercises="ex05")
     ag = _fake_autograder(tmp_path, {"users": [{"id": "777"}]})
-    nb = ROOT / "exercises" / "ex05_cv_model.ipynb"
+    nb = source_notebook(get_exercise("ex05_cv_model"))
     (ag / "submission" / nb.name).write_bytes(nb.read_bytes())
     data = _run_autograder(src, ag, sys.executable)
     info = data["extra_data"]["flowtrack"]
@@ -682,11 +687,13 @@ def _closure(names: list[str], extras: bool = False) -> set[str]:
 PROBE = r"""
 import json, sys, tempfile
 from pathlib import Path
-from flowtrack_course.grading.exercises import EXERCISES
-from flowtrack_course.grading.grade import grade_student
+from flowtrack_course.grading.engine.jobs import GradingOptions, StudentJob
+from flowtrack_course.grading.engine.student import grade_student
+from flowtrack_course.grading.sources import course_catalog
 sub = Path(sys.argv[1])
+exercises = course_catalog().default()
 with tempfile.TemporaryDirectory() as tmp:
-    s = grade_student("probe", sub, EXERCISES, tmp, force=True)
+    s = grade_student(StudentJob("probe", sub, Path(tmp), exercises, GradingOptions(force=True)))
 top = sorted({m.split(".")[0] for m in sys.modules} - set(sys.stdlib_module_names))
 print(json.dumps({"score": s["score"], "max": s["max_score"], "modules": top}))
 """
@@ -700,7 +707,7 @@ def test_grading_imports_only_the_grader_extra(tmp_path):
 
     sub = tmp_path / "sub"
     sub.mkdir()
-    for nb in (ROOT / "exercises").glob("ex*.ipynb"):
+    for nb in (ROOT / "exercises").glob("ex*/ex*.ipynb"):
         (sub / nb.name).write_bytes(nb.read_bytes())
     proc = subprocess.run(
         [sys.executable, "-c", PROBE, str(sub)], capture_output=True, text=True, timeout=900, check=True
@@ -718,7 +725,8 @@ def test_grading_imports_only_the_grader_extra(tmp_path):
     for mod in data["modules"]:
         # flowtrack itself; Cython's pseudo-module; scikit-sparse and pyamg (the `fast` extra) are
         # optional (guarded imports in flowtrack.sceneflow, which falls back to SuperLU/CG without them)
-        if mod in ("flowtrack", "flowtrack_course", "cython_runtime", "sksparse", "pyamg", "__main__") \
+        if mod in ("flowtrack", "flowtrack_course", "grading_sandbox", "cython_runtime", "sksparse", "pyamg",
+                   "__main__") \
                 or mod.startswith("_"):
             continue
         names = {d.lower().replace("_", "-") for d in dists.get(mod, [mod])}

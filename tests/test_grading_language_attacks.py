@@ -21,10 +21,10 @@ from pathlib import Path
 
 import pytest
 
-from flowtrack_course.grading.grade import run_exercise
+from flowtrack_course.grading.engine.run import run_exercise
 from flowtrack_course.grading.languages import TOOLCHAINS, find_language_exercise, strip_solutions
 from flowtrack_course.grading.languages import toolchains as toolchains_module
-from flowtrack_course.grading.sandbox import bwrap_status
+from grading_sandbox import bwrap_status
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from flowtrack_course.grading.grade import exercises_hash, run_exercise
+from flowtrack_course.grading.engine.run import run_exercise
+from flowtrack_course.grading.engine.student import exercises_hash
 from flowtrack_course.grading.languages import TOOLCHAINS, find_language_exercise, strip_solutions
 from flowtrack_course.grading.languages.exercises import LanguageExercise
 from grading_helpers import use_sandbox_mode

@@ -17,7 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtrack_course.grading.grade import grade_class, run_exercise
+from flowtrack_course.grading.engine.run import run_exercise
+from flowtrack_course.grading.engine.spec import Outcome
+from flowtrack_course.grading.grade import grade_class
 from flowtrack_course.grading.languages import (
     LANGUAGE_EXERCISES,
     PROBLEMS,
@@ -28,8 +30,8 @@ from flowtrack_course.grading.languages import (
     strip_solutions,
 )
 from flowtrack_course.grading.languages.exercises import _score_cases
-from flowtrack_course.grading.sandbox import bwrap_status
-from flowtrack_course.grading.spec import Outcome
+from grading_helpers import class_job, get_exercise, run_grade_with, source_notebook, student_job
+from grading_sandbox import bwrap_status
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -287,7 +289,7 @@ def test_check_and_grade_commands_cover_the_languages(toolchain, tmp_path, capsy
     subs = tmp_path / "subs"
     _write(subs / "ana", ex, (SOURCES / ex.notebook).read_text())
     _write(subs / "ben", ex, strip_solutions((SOURCES / ex.notebook).read_text(), "octave"))
-    rows = {r["student"]: r for r in grade_class(subs, tmp_path / "out", progress=False)}
+    rows = {r["student"]: r for r in grade_class(class_job(subs, tmp_path / "out", progress=False))}
     assert rows["ana"]["exercises"][ex.id] == 3.0 and rows["ben"]["exercises"][ex.id] == 0.0
     header = (tmp_path / "out" / "grades.csv").read_text().splitlines()[0].split(",")
     assert ex.id in header and "total" in header
@@ -296,9 +298,7 @@ def test_check_and_grade_commands_cover_the_languages(toolchain, tmp_path, capsy
     assert any(t["name"].startswith(ex.id) for t in results["tests"])
     assert (tmp_path / "out" / "ben" / "feedback" / f"{ex.id}.md").is_file()
     # `flowtrack grade` (run_grade: the layout check first) grades a class that answered only in Octave
-    from flowtrack_course.grading.instructor import run_grade
-
-    run = run_grade(subs, tmp_path / "out-cli", progress=False, log=lambda msg: None)
+    run = run_grade_with(subs, tmp_path / "out-cli", progress=False, log=lambda msg: None)
     assert run.status == 0, run.reason
     rows = {r["student"]: r for r in run.rows}
     assert rows["ana"]["exercises"][ex.id] == 3.0 and rows["ben"]["exercises"][ex.id] == 0.0
@@ -347,7 +347,8 @@ def test_mathics_harness_runs_the_public_tests_locally(tmp_path):
 
 @pytest.mark.parametrize("toolchain", ["octave"], indirect=True)
 def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
-    from flowtrack_course.grading.gradescope import SETUP_SH, grader_requirements, run_submission
+    from flowtrack_course.grading.export.gradescope import SETUP_SH, grader_requirements
+    from flowtrack_course.grading.grade.gradescope import run_submission
 
     apt = " ".join(ln.rstrip("\\") for ln in SETUP_SH.splitlines() if not ln.lstrip().startswith("#"))
     for pkg in ("g++", "libeigen3-dev", "nlohmann-json3-dev", "octave", "openjdk-17-jdk-headless",
@@ -373,19 +374,18 @@ def test_language_answers_score_the_same_in_the_pool_and_fresh(toolchain, tmp_pa
     # right and wrong answers alike, beside a notebook exercise sharing the pool.
     import shutil
 
-    from flowtrack_course.grading.exercises import get_exercise
-    from flowtrack_course.grading.grade import grade_student
+    from flowtrack_course.grading.engine.student import grade_student
 
     right, wrong = _ex("octave", "cv_model"), _ex("octave", "projection_jacobian")
     nb = get_exercise("ex05_cv_model")
     sub = tmp_path / "ana"
     _write(sub, right, (SOURCES / right.notebook).read_text())
     _write(sub, wrong, strip_solutions((SOURCES / wrong.notebook).read_text(), "octave"))
-    shutil.copy(REPO / "exercises" / nb.notebook, sub / nb.notebook)
+    shutil.copy(source_notebook(nb), sub / nb.notebook)
     scores = {}
     for reuse in (True, False):
-        s = grade_student("ana", sub, [right, nb, wrong], tmp_path / f"out{reuse}", force=True,
-                          reuse_sandboxes=reuse)
+        s = grade_student(student_job("ana", sub, [right, nb, wrong], tmp_path / f"out{reuse}", force=True,
+                                      reuse_sandboxes=reuse))
         scores[reuse] = s["exercises"]
     assert scores[True] == scores[False]
     assert scores[True][right.id] == right.max_score and scores[True][nb.id] == nb.max_score

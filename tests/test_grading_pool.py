@@ -16,13 +16,14 @@ import nbformat
 import numpy as np
 import pytest
 
-from flowtrack_course.grading import sandbox as sandbox_mod
-from flowtrack_course.grading.exercises import EXERCISES
-from flowtrack_course.grading.grade import grade_class, run_exercise
-from flowtrack_course.grading.release import release_notebook
-from flowtrack_course.grading.sandbox import Limits, Sandbox, SandboxPool
-from flowtrack_course.grading.spec import Call, Exercise, GradedTest, Outcome, public_seed, student_seed
-from grading_helpers import StandInSandbox, use_sandbox_mode
+from flowtrack_course.grading.assign.release import release_notebook
+from flowtrack_course.grading.engine.run import run_exercise
+from flowtrack_course.grading.engine.seeds import public_seed, student_seed
+from flowtrack_course.grading.engine.spec import Call, Exercise, GradedTest, Outcome
+from flowtrack_course.grading.grade import grade_class
+from grading_helpers import EXERCISES, StandInSandbox, class_job, source_notebook, use_sandbox_mode
+from grading_sandbox import Limits, Sandbox, SandboxPool
+from grading_sandbox import sandbox as sandbox_mod
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -52,7 +53,7 @@ def _answer_cells(nb, ids):
 
 def _make_class(sub: Path) -> None:
     for ex in EXERCISES:
-        source = nbformat.read(ROOT / "exercises" / ex.notebook, as_version=4)
+        source = nbformat.read(source_notebook(ex), as_version=4)
         stub = release_notebook(source)
         nbformat.write(source, _mk(sub / "solution" / ex.notebook))
         nbformat.write(stub, _mk(sub / "stub" / ex.notebook))
@@ -101,8 +102,8 @@ def test_pooled_grading_scores_exactly_like_a_sandbox_per_exercise(class_dir, tm
     rows = {}
     for reuse in (False, True):
         current["reuse"] = reuse
-        rows[reuse] = grade_class(class_dir, tmp_path / f"out-{reuse}", jobs=1, progress=False,
-                                  reuse_sandboxes=reuse)
+        rows[reuse] = grade_class(class_job(class_dir, tmp_path / f"out-{reuse}", jobs=1, progress=False,
+                                  reuse_sandboxes=reuse))
     students = ["crash_first", "partial", "solution", "stub", "wrong"]
     for reuse in (False, True):
         assert [r["student"] for r in rows[reuse]] == students and all("error" not in r for r in rows[reuse])

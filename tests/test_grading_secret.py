@@ -20,10 +20,16 @@ import pytest
 
 nbformat = pytest.importorskip("nbformat")
 
-from flowtrack_course.grading.exercises import get_exercise  # noqa: E402
-from flowtrack_course.grading.grade import grade_class, run_exercise  # noqa: E402
-from flowtrack_course.grading.spec import MIN_SECRET_BYTES, read_secret, secret_id, student_seed  # noqa: E402
-from grading_helpers import RecordingSandbox  # noqa: E402
+from flowtrack_course.grading.engine.jobs import GradingOptions  # noqa: E402
+from flowtrack_course.grading.engine.run import run_exercise  # noqa: E402
+from flowtrack_course.grading.engine.seeds import MIN_SECRET_BYTES, read_secret, secret_id, student_seed  # noqa: E402
+from flowtrack_course.grading.grade import grade_class  # noqa: E402
+from grading_helpers import (  # noqa: E402
+    RecordingSandbox,
+    class_job,
+    get_exercise,
+    source_notebook,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 EX = get_exercise("ex02_optical_flow")
@@ -33,12 +39,12 @@ KEY_B = bytes(range(1, 33))
 
 def _inputs(student, secret, hidden):
     """The arguments sent for ``student``'s hidden (or public) tests of EX under ``secret``."""
-    nb = ROOT / "exercises" / EX.notebook
+    nb = source_notebook(EX)
     RecordingSandbox.sent = []
     tests = [t for t in EX.tests if t.hidden == hidden]
     assert tests, "EX needs hidden and public tests for this check"
     sub = dataclasses.replace(EX, tests=tuple(tests))
-    run_exercise(sub, nb, student, sandbox_factory=RecordingSandbox, secret=secret)
+    run_exercise(sub, nb, student, sandbox_factory=RecordingSandbox, options=GradingOptions(secret=secret))
     return list(RecordingSandbox.sent)
 
 
@@ -84,11 +90,11 @@ def test_read_secret_creates_an_owner_only_key_and_rejects_short_ones(tmp_path):
 def test_a_rerun_with_another_key_regrades_and_the_same_key_keeps(tmp_path):
     subs, out = tmp_path / "subs", tmp_path / "out"
     (subs / "ana").mkdir(parents=True)
-    (subs / "ana" / EX.notebook).write_bytes((ROOT / "exercises" / EX.notebook).read_bytes())
+    (subs / "ana" / EX.notebook).write_bytes(source_notebook(EX).read_bytes())
 
     def run(secret):
-        rows = grade_class(subs, out, exercises=[EX], progress=False, sandbox_factory=RecordingSandbox,
-                           secret=secret)
+        rows = grade_class(class_job(subs, out, exercises=[EX], progress=False,
+                                     sandbox_factory=RecordingSandbox, secret=secret))
         return rows[0]["skipped"], json.loads((out / "ana" / "results.json").read_text())
 
     skipped, data = run(KEY_A)
@@ -106,7 +112,7 @@ def test_the_command_line_creates_and_uses_the_key(tmp_path, capsys):
 
     subs, out, key = tmp_path / "subs", tmp_path / "out", tmp_path / "seed.key"
     (subs / "ana").mkdir(parents=True)
-    (subs / "ana" / EX.notebook).write_bytes((ROOT / "exercises" / EX.notebook).read_bytes())
+    (subs / "ana" / EX.notebook).write_bytes(source_notebook(EX).read_bytes())
     args = ["grade", str(subs), "--out", str(out), "--no-progress"]
     assert main([*args, "--secret-file", str(key)]) == 0
     assert "created the seed key" in capsys.readouterr().err and key.is_file()
@@ -120,7 +126,7 @@ def test_the_command_line_creates_and_uses_the_key(tmp_path, capsys):
 
 
 def test_the_gradescope_zip_carries_the_key_to_the_grader(tmp_path):
-    from flowtrack_course.grading.gradescope import build_autograder
+    from flowtrack_course.grading.export.gradescope import build_autograder
 
     key = tmp_path / "seed.key"
     zpath = build_autograder(tmp_path / "autograder.zip", secret_file=key)

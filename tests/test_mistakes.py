@@ -1,12 +1,13 @@
 """The mistake catalogue and the feedback (issue 16).
 
-Every catalogued mistake, written as the code a student would write, is named in the feedback
-(``mistake <id>: ...``); the right answer gets no mistake line; unrelated wrong answers never get a
-catalogued id; the feedback of hidden tests never shows a hidden input or expected value (searched
-for in the text); the same code scores the same for every student; the trusted variants the grader
-recognises mistakes with agree with the reference where they should (the right configuration of
-each variant function equals the trusted reference). Student code runs in process here (the
-in-process runner and an in-process stand-in for the sandbox), never in the real sandbox.
+Every catalogued mistake, written as the code a student would write (each exercise folder's
+``cases.py``), is named in the feedback (``mistake <id>: ...``); the right answer gets no mistake
+line; unrelated wrong answers never get a catalogued id; the feedback of hidden tests never shows a
+hidden input or expected value (searched for in the text); the same code scores the same for every
+student; the trusted variants the grader recognises mistakes with agree with the reference where
+they should (the right configuration of each variant function equals the trusted reference).
+Student code runs in process here (the in-process runner and an in-process stand-in for the
+sandbox), never in the real sandbox.
 """
 
 from __future__ import annotations
@@ -18,12 +19,16 @@ import traceback
 import numpy as np
 import pytest
 
-from flowtrack_course.grading.exercises import EXERCISES, get_exercise, run_in_process
-from flowtrack_course.grading.exercises.catalogue import CATALOGUE, GENERIC, mistake_line
-from flowtrack_course.grading.exercises.feedback import compare, safe_error
-from flowtrack_course.grading.spec import Outcome, student_seed
+from flowtrack_course.grading.check import run_in_process
+from flowtrack_course.grading.engine.feedback import compare, safe_error
+from flowtrack_course.grading.engine.mistakes import GENERIC
+from flowtrack_course.grading.engine.seeds import student_seed
+from flowtrack_course.grading.engine.spec import Outcome
+from grading_helpers import COURSE_SET, EXERCISES, answer, cases, exercise_module, get_exercise
 from test_exercises import _answer_sources, _read, _replace_solution
 
+CATALOGUE = COURSE_SET.catalogue
+mistake_line = CATALOGUE.line
 MISTAKE_LINE = re.compile(r"^mistake ([A-Za-z0-9-]+): ", flags=re.M)
 
 
@@ -66,436 +71,13 @@ def _edit(ex_id: str, gid: str, old: str, new: str) -> dict[str, str]:
 # --------------------------------------------------------------------------------------------------
 # every catalogued mistake, as code
 # --------------------------------------------------------------------------------------------------
-_JAC = """
-X = np.asarray(X, dtype=float)
-Z = X[:, 2]
-J = np.zeros((X.shape[0], 2, 3))
-J[:, 0, 0] = {a} / Z
-J[:, 0, 2] = {s}{a} * X[:, 0] / Z**{p}
-J[:, 1, 1] = {b} / Z
-J[:, 1, 2] = {s}{b} * X[:, 1] / Z**{p}
-return J
-"""
-
-_SYM = {  # ex11 answers as text
-    "kron": "Matrix([[dt**4*q/4, 0, dt**3*q/2, 0], [0, dt**4*q/4, 0, dt**3*q/2],"
-    " [dt**3*q/2, 0, dt**2*q, 0], [0, dt**3*q/2, 0, dt**2*q]])",
-    "cont": "Matrix([[dt**3*q/3, dt**2*q/2, 0, 0], [dt**2*q/2, dt*q, 0, 0],"
-    " [0, 0, dt**3*q/3, dt**2*q/2], [0, 0, dt**2*q/2, dt*q]])",
-    "noq": "Matrix([[dt**4/4, dt**3/2, 0, 0], [dt**3/2, dt**2, 0, 0],"
-    " [0, 0, dt**4/4, dt**3/2], [0, 0, dt**3/2, dt**2]])",
-}
-
-
-def _fn(name: str, args: str, body: str) -> str:
-    lines = "\n".join("    " + ln if ln else ln for ln in body.strip("\n").splitlines())
-    return f"import numpy as np\n\n\ndef {name}({args}):\n{lines}\n"
-
-
-_HUNGARIAN_BRUTE = (
-    "import itertools\nimport numpy as np\n"
-    "def hungarian(cost):\n"
-    "    C = np.asarray(cost, dtype=float)\n"
-    "    T = C.shape[0] > C.shape[1]\n"
-    "    C = C.T if T else C\n"
-    "    n, m = C.shape\n"
-    "    best = min(itertools.permutations(range(m), n), key=lambda s: sum(C[i, s[i]] for i in range(n)))\n"
-    "    pairs = list(enumerate(best))\n"
-    "    return np.array([(j, i) for i, j in pairs] if T else pairs)\n"
-)
-
-_GREEDY = _fn(
-    "hungarian",
-    "cost",
-    """
-C = np.asarray(cost, dtype=float)
-pairs, rows, cols = [], set(), set()
-for flat in np.argsort(C, axis=None, kind="stable"):
-    i, j = divmod(int(flat), C.shape[1])
-    if i not in rows and j not in cols:
-        rows.add(i)
-        cols.add(j)
-        pairs.append((i, j))
-return np.array(sorted(pairs)).reshape(-1, 2)
-""",
-)
-
-
-def _maximising():
-    src = _solution("ex08_hungarian")
-    body = src["hungarian"].replace("def hungarian(cost):", "def _min_assign(cost):")
-    return {
-        "hungarian": body
-        + "\n\ndef hungarian(cost):\n    return _min_assign(-np.asarray(cost, dtype=float))\n"
-    }
-
-
 def _cases():
-    """(mistake id, exercise id, sources) for every catalogued mistake."""
-    S = _solution
-    c = []
-    add = c.append
-    # ex01
-    ex = "ex01_projection_jacobian"
-    add(("jacobian-sign", ex, _body(ex, "projection_jacobian", _JAC.format(a="fx", b="fy", s="", p=2))))
-    add(
-        (
-            "jacobian-fx-fy-swapped",
-            ex,
-            _body(ex, "projection_jacobian", _JAC.format(a="fy", b="fx", s="-", p=2)),
-        )
-    )
-    add(
-        (
-            "jacobian-z-not-squared",
-            ex,
-            _body(ex, "projection_jacobian", _JAC.format(a="fx", b="fy", s="-", p=1)),
-        )
-    )
-    src = _edit(ex, "project", "X[:, 2] + cx", "X[:, 2]")
-    src["project"] = src["project"].replace("X[:, 2] + cy", "X[:, 2]")
-    add(("projection-missing-principal-point", ex, src))
-    # ex02
-    ex = "ex02_optical_flow"
-    add(("missing-dt", ex, _edit(ex, "optical_flow", "axis=1) * dt", "axis=1)")))
-    add(
-        (
-            "flow-ignores-depth-motion",
-            ex,
-            _body(
-                ex,
-                "optical_flow",
-                """
-X = np.asarray(X, dtype=float)
-V = np.asarray(V, dtype=float)
-return np.stack([fx * V[:, 0] / X[:, 2], fy * V[:, 1] / X[:, 2]], axis=1) * dt
-""",
-            ),
-        )
-    )
-    # ex03
-    ex = "ex03_gauss_seidel"
-    add(
-        (
-            "jacobi-not-gauss-seidel",
-            ex,
-            _body(
-                ex,
-                "red_black_sweep",
-                """
-v = np.array(v, dtype=float)
-H, W = v.shape
-deg = np.zeros((H, W))
-deg[1:, :] += 1
-deg[:-1, :] += 1
-deg[:, 1:] += 1
-deg[:, :-1] += 1
-s = np.zeros((H, W))
-s[1:] += v[:-1]
-s[:-1] += v[1:]
-s[:, 1:] += v[:, :-1]
-s[:, :-1] += v[:, 1:]
-return (rhs + lam * s) / (c + lam * deg)
-""",
-            ),
-        )
-    )
-    add(
-        (
-            "black-before-red",
-            ex,
-            _edit(ex, "red_black_sweep", "for colour in (red, ~red):", "for colour in (~red, red):"),
-        )
-    )
-    add(
-        (
-            "neumann-boundary-degree",
-            ex,
-            _edit(ex, "red_black_sweep", "diag = c + lam * deg", "diag = c + lam * 4.0"),
-        )
-    )
-    add(
-        (
-            "dense-solve-not-sweeps",
-            ex,
-            _body(
-                ex,
-                "solve_gauss_seidel",
-                """
-a = np.asarray(a, dtype=float)
-H, W = a.shape
-n = H * W
-A = dt**2 * np.eye(n)
-idx = np.arange(n).reshape(H, W)
-for p, q in list(zip(idx[:, :-1].ravel(), idx[:, 1:].ravel())) + list(zip(idx[:-1].ravel(), idx[1:].ravel())):
-    A[p, p] += lam
-    A[q, q] += lam
-    A[p, q] -= lam
-    A[q, p] -= lam
-return np.linalg.solve(A, (dt * (np.asarray(b) - a)).ravel()).reshape(H, W)
-""",
-            ),
-        )
-    )
-    add(
-        (  # an "accelerated" solver: extrapolated sweeps reach the right solution at another rate
-            "residual-rate-not-gauss-seidel",
-            ex,
-            _edit(
-                ex,
-                "solve_gauss_seidel",
-                "v = red_black_sweep(v, rhs, c, lam)",
-                "v = v + 1.5 * (red_black_sweep(v, rhs, c, lam) - v)",
-            ),
-        )
-    )
-    # ex04
-    ex = "ex04_graph_scene_flow"
-    add(("knn-not-symmetrised", ex, _edit(ex, "knn_laplacian", "    A = A | A.T\n", "")))
-    add(("affinity-sigma-not-squared", ex, _edit(ex, "knn_laplacian", "/ sigma**2", "/ sigma")))
-    # ex05
-    ex = "ex05_cv_model"
-    add(
-        (
-            "q-block-diagonal",
-            ex,
-            _body(
-                ex,
-                "cv_process_noise",
-                """
-q1d = q * np.array([[dt**4 / 4.0, dt**3 / 2.0], [dt**3 / 2.0, dt**2]])
-Q = np.zeros((4, 4))
-Q[:2, :2] = q1d
-Q[2:, 2:] = q1d
-return Q
-""",
-            ),
-        )
-    )
-    add(
-        (
-            "q-continuous-white-noise",
-            ex,
-            _body(
-                ex,
-                "cv_process_noise",
-                """
-return q * np.kron(np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]]), np.eye(2))
-""",
-            ),
-        )
-    )
-    add(("q-missing-q", ex, _edit(ex, "cv_process_noise", "q1d = q * np.array", "q1d = np.array")))
-    # ex06
-    ex = "ex06_kalman_predict_update"
-    add(("innovation-without-R", ex, _edit(ex, "kf_update", "S = H @ P @ H.T + R", "S = H @ P @ H.T")))
-    add(("predict-without-Q", ex, _edit(ex, "kf_predict", "P = F @ P @ F.T + Q", "P = F @ P @ F.T")))
-    # ex07
-    ex = "ex07_mahalanobis_gating"
-    add(
-        (
-            "euclidean-not-mahalanobis",
-            ex,
-            _body(
-                ex,
-                "mahalanobis_cost",
-                """
-d = np.asarray(Z, dtype=float)[None, :, :] - np.asarray(z_pred, dtype=float)[:, None, :]
-return np.sum(d**2, axis=2)
-""",
-            ),
-        )
-    )
-    add(
-        (
-            "covariance-not-inverted",
-            ex,
-            _body(
-                ex,
-                "mahalanobis_cost",
-                """
-d = np.asarray(Z, dtype=float)[None, :, :] - np.asarray(z_pred, dtype=float)[:, None, :]
-return np.einsum("mni,mij,mnj->mn", d, np.asarray(S, dtype=float), d)
-""",
-            ),
-        )
-    )
-    add(
-        (
-            "distance-not-squared",
-            ex,
-            _edit(ex, "mahalanobis_cost", "    return C\n", "    return np.sqrt(C)\n"),
-        )
-    )
-    add(
-        (
-            "gate-wrong-dof",
-            ex,
-            _edit(ex, "gated_cost", "chi2.ppf(prob, np.shape(z_pred)[1])", "chi2.ppf(prob, 2)"),
-        )
-    )
-    add(
-        ("gate-prob-as-threshold", ex, _edit(ex, "gated_cost", "chi2.ppf(prob, np.shape(z_pred)[1])", "prob"))
-    )
-    # ex08
-    add(("greedy-assignment", "ex08_hungarian", {"hungarian": _GREEDY}))
-    add(("assignment-maximises", "ex08_hungarian", _maximising()))
-    add(("brute-force-assignment", "ex08_hungarian", {"hungarian": _HUNGARIAN_BRUTE}))
-    # ex09
-    ex = "ex09_track_management"
-    add(
-        (
-            "deletion-off-by-one",
-            ex,
-            _edit(ex, "manage_tracks", 't["misses"] > max_misses', 't["misses"] >= max_misses'),
-        )
-    )
-    src = _edit(ex, "manage_tracks", 't["hits"] >= min_hits', 't["hits"] > min_hits')
-    src["manage_tracks"] = src["manage_tracks"].replace(
-        '"confirmed": min_hits <= 1', '"confirmed": min_hits < 1'
-    )
-    add(("confirmation-off-by-one", ex, src))
-    add(
-        (
-            "tentative-track-coasts",
-            ex,
-            _edit(ex, "manage_tracks", '(t["misses"] > 0 and not t["confirmed"]) or ', ""),
-        )
-    )
-    src = _edit(
-        ex,
-        "manage_tracks",
-        'tracks[lab] = {"id": next_id,',
-        'tracks[lab] = {"id": ids.setdefault(lab, next_id),',
-    )
-    src["manage_tracks"] = src["manage_tracks"].replace(
-        "    next_id = 0\n", "    next_id = 0\n    ids = {}\n"
-    )
-    src["manage_tracks"] = src["manage_tracks"].replace(
-        "                next_id += 1\n", "                next_id = max(ids.values()) + 1\n"
-    )
-    add(("track-id-reused", ex, src))
-    # ex10
-    ex = "ex10_motion_clustering"
-    add(("clusters-by-position-only", ex, _edit(ex, "cluster_tracks", "adj = near & alike", "adj = near")))
-    add(
-        (
-            "static-points-kept",
-            ex,
-            _edit(
-                ex,
-                "cluster_tracks",
-                "keep = np.linalg.norm(V, axis=1) >= min_speed",
-                "keep = np.ones(len(V), dtype=bool)",
-            ),
-        )
-    )
-    # ex11
-    ex = "ex11_concepts"
-    for mid, text in (
-        ("q-kron-for-this-order", "kron"),
-        ("q-continuous-white-noise", "cont"),
-        ("q-missing-q", "noq"),
-    ):
-        add((mid, ex, _body(ex, "q_order", f"return {_SYM[text]!r}")))
-    add(("el-laplacian-sign", ex, _body(ex, "euler_lagrange", 'return "2*dt*(a + v*dt - b) + 2*lam*Lv"')))
-    add(("el-missing-inner-derivative", ex, _body(ex, "euler_lagrange", 'return "a + v*dt - b - lam*Lv"')))
-    add(("el-half-factor", ex, _body(ex, "euler_lagrange", 'return "2*dt*(a + v*dt - b) - lam*Lv"')))
-    jac = "Matrix([[f/Z, 0, {s}f*X/Z**2], [0, f/Z, {s}f*Y/Z**2], [0, 0, {t}1/Z**2]])"
-    add(("jacobian-sign", ex, _body(ex, "inverse_depth_jacobian", f"return {jac.format(s='', t='-')!r}")))
-    add(
-        ("inverse-depth-sign", ex, _body(ex, "inverse_depth_jacobian", f"return {jac.format(s='-', t='')!r}"))
-    )
-    add(
-        (
-            "generic-transpose",
-            ex,
-            _body(
-                ex,
-                "inverse_depth_jacobian",
-                'return "Matrix([[f/Z, 0, 0], [0, f/Z, 0], [-f*X/Z**2, -f*Y/Z**2, -1/Z**2]])"',
-            ),
-        )
-    )
-    add(
-        (
-            "null-space-assumed-px-vx-order",
-            ex,
-            _body(
-                ex, "unexcited_directions", "return np.array([[2.0, 0.0, -dt, 0.0], [0.0, 2.0, 0.0, -dt]])"
-            ),
-        )
-    )
-    add(
-        (
-            "most-excited-not-unexcited",
-            ex,
-            _body(
-                ex,
-                "unexcited_directions",
-                "return np.array([[dt / 2, 1.0, 0.0, 0.0], [0.0, 0.0, dt / 2, 1.0]])",
-            ),
-        )
-    )
-    nees = S(ex)["nees_value"]
-    add(
-        (
-            "nees-inverted",
-            ex,
-            {**S(ex), "nees_value": nees.replace("return float(S / Pp)", "return float(Pp / S)")},
-        )
-    )
-    add(("nees-assumed-consistent", ex, _body(ex, "nees_value", "return 1.0")))
-    add(
-        (
-            "nees-prior-covariance",
-            ex,
-            {**S(ex), "nees_value": nees.replace("return float(S / Pp)", "return float((S + q_true) / Pm)")},
-        )
-    )
-    add(("lambda-largest", ex, _body(ex, "chosen_lambda", "return 1.0")))
-    add(("lambda-smallest", ex, _body(ex, "chosen_lambda", "return 0.0")))
-    add(("lambda-log10", ex, _body(ex, "chosen_lambda", "return -2.0")))
-    # generic diagnoses
-    add(
-        (
-            "generic-scale",
-            "ex04_graph_scene_flow",
-            _edit(
-                "ex04_graph_scene_flow",
-                "graph_scene_flow",
-                "return np.linalg.solve(A, dt * (Y - X))",
-                "return 2.0 * np.linalg.solve(A, dt * (Y - X))",
-            ),
-        )
-    )
-    add(
-        (
-            "generic-sign",
-            "ex06_kalman_predict_update",
-            _edit("ex06_kalman_predict_update", "kf_predict", "x = F @ x", "x = -(F @ x)"),
-        )
-    )
-    add(
-        (
-            "generic-transpose",
-            "ex05_cv_model",
-            _edit("ex05_cv_model", "cv_transition", "    return F\n", "    return F.T\n"),
-        )
-    )
-    add(
-        (
-            "generic-permutation",
-            "ex01_projection_jacobian",
-            _edit(
-                "ex01_projection_jacobian",
-                "project",
-                "return np.stack([x, y], axis=1)",
-                "return np.stack([x, y], axis=1)[::-1]",
-            ),
-        )
-    )
-    return c
+    """(mistake id, exercise id, sources) for every mistake the exercises' ``cases.py`` write as code."""
+    return [
+        (mistake, ex.id, answer(_solution(ex.id), edits))
+        for ex in EXERCISES
+        for mistake, edits in cases(ex.id).MISTAKES
+    ]
 
 
 CASES = _cases()
@@ -543,41 +125,7 @@ def test_right_answer_gets_no_mistake_line(ex):
 
 
 UNRELATED = [  # wrong answers that are none of the catalogued mistakes
-    ("ex01_projection_jacobian", "projection_jacobian", "return np.ones((len(X), 2, 3))"),
-    ("ex01_projection_jacobian", "project", "X = np.asarray(X); return X[:, :2] / X[:, 2:] * fx + 0.5"),
-    ("ex02_optical_flow", "optical_flow", "return np.asarray(V)[:, :2] * 3.0 + 0.1"),
-    ("ex03_gauss_seidel", "red_black_sweep", "return np.asarray(v) + 0.1"),
-    ("ex03_gauss_seidel", "solve_gauss_seidel", "return (np.asarray(b) - np.asarray(a)) / dt"),
-    ("ex04_graph_scene_flow", "knn_laplacian", "n = len(points); return np.eye(n) - np.ones((n, n)) / n"),
-    ("ex05_cv_model", "cv_process_noise", "return q * np.eye(4) * dt"),
-    ("ex06_kalman_predict_update", "kf_update", "return np.asarray(x) + 1.0, np.asarray(P) * 0.5"),
-    ("ex07_mahalanobis_gating", "mahalanobis_cost", "return np.ones((len(z_pred), len(Z)))"),
-    (
-        "ex07_mahalanobis_gating",
-        "gated_cost",
-        "C = mahalanobis_cost(z_pred, S, Z); return np.where(C <= 3.0, C, np.inf)",
-    ),
-    (
-        "ex08_hungarian",
-        "hungarian",
-        "n = min(np.shape(cost)); return np.array([(i, (i + 1) % n) for i in range(n)])",
-    ),
-    ("ex09_track_management", "manage_tracks", "return [[[0, 'confirmed']] for f in frames]"),
-    (
-        "ex10_motion_clustering",
-        "cluster_tracks",
-        "P = np.asarray(points); V = np.asarray(flow)\n"
-        "return P.mean(0, keepdims=True), V.mean(0, keepdims=True)",
-    ),
-    (
-        "ex11_concepts",
-        "q_order",
-        'return "Matrix([[q, 0, 0, 0], [0, q, 0, 0], [0, 0, q, 0], [0, 0, 0, dt]])"',
-    ),
-    ("ex11_concepts", "euler_lagrange", 'return "v - lam*Lv*dt"'),
-    ("ex11_concepts", "nees_value", "return 2.5"),
-    ("ex11_concepts", "chosen_lambda", "return 0.001"),
-    ("ex11_concepts", "unexcited_directions", "return np.eye(4)[:2]"),
+    (ex.id, gid, body) for ex in EXERCISES for gid, body in cases(ex.id).UNRELATED
 ]
 
 
@@ -620,7 +168,8 @@ def _numbers(x, out: set[str]) -> None:
 def _hidden_texts_and_secrets(ex, sources, student="leaky"):
     """The hidden tests' feedback (through run_exercise, results.json and the feedback page) and
     the text forms of their inputs and of the right outputs."""
-    from flowtrack_course.grading.grade import feedback_markdown, results_json, run_exercise
+    from flowtrack_course.grading.engine.results import feedback_markdown, results_json
+    from flowtrack_course.grading.engine.run import run_exercise
 
     secrets: set[str] = set()
     ref: dict = {"__name__": "ref"}
@@ -689,9 +238,9 @@ class InProcessSandbox:
         return False
 
     def run(self, calls, timeout):
-        from flowtrack_course.grading.exercises.inprocess import _call_all
+        from flowtrack_course.grading.check.inprocess import call_all
 
-        return _call_all(self.ns, calls, timeout)
+        return call_all(self.ns, calls, timeout)
 
 
 LEAK_CASES = [c for c in CASES if c[0] not in ("brute-force-assignment",)] + [
@@ -748,7 +297,7 @@ def test_safe_error_keeps_type_and_line_only():
 # one line per cause, dependencies
 # --------------------------------------------------------------------------------------------------
 def test_import_error_is_one_line_and_no_name_error_cascade():
-    from flowtrack_course.grading.grade import run_exercise
+    from flowtrack_course.grading.engine.run import run_exercise
 
     ex = get_exercise("ex07_mahalanobis_gating")
     src = _solution(ex.id)
@@ -764,7 +313,7 @@ def test_import_error_is_one_line_and_no_name_error_cascade():
 
 
 def test_dependent_test_says_which_function_to_fix_first():
-    from flowtrack_course.grading.grade import run_exercise
+    from flowtrack_course.grading.engine.run import run_exercise
 
     ex = get_exercise("ex07_mahalanobis_gating")
     sources = CASES[[m for m, *_ in CASES].index("euclidean-not-mahalanobis")][2]
@@ -780,7 +329,8 @@ def test_dependent_test_says_which_function_to_fix_first():
 
 def test_results_json_and_feedback_carry_the_mistake_lines():
     from flowtrack_course.grading.check import format_report
-    from flowtrack_course.grading.grade import feedback_markdown, results_json, run_exercise
+    from flowtrack_course.grading.engine.results import feedback_markdown, results_json
+    from flowtrack_course.grading.engine.run import run_exercise
 
     ex = get_exercise("ex05_cv_model")
     sources = CASES[[m for m, *_ in CASES].index("q-block-diagonal")][2]
@@ -808,8 +358,9 @@ def test_a_recognised_mistake_reaches_misconceptions_csv(tmp_path):
     import csv
     import json
 
-    from flowtrack_course.grading import classreport
-    from flowtrack_course.grading.grade import results_json, run_exercise
+    from flowtrack_course.grading.engine.results import results_json
+    from flowtrack_course.grading.engine.run import run_exercise
+    from flowtrack_course.grading.export import classreport
 
     ex = get_exercise("ex05_cv_model")
     wrong = CASES[[m for m, *_ in CASES].index("q-block-diagonal")][2]
@@ -848,12 +399,12 @@ def test_same_code_same_score_for_twenty_students(mistake, ex_id, sources):
 # --------------------------------------------------------------------------------------------------
 def test_variant_functions_default_to_the_reference():
     from flowtrack.variational import red_black_sweep
-    from flowtrack_course.grading.exercises.ex03_gauss_seidel import grid_sweep
-    from flowtrack_course.grading.exercises.ex04_graph_scene_flow import _ex04_L, knn_laplacian_variant
-    from flowtrack_course.grading.exercises.ex09_track_management import (
-        _ex09_random_frames,
-        expected_frames,
-        manage_variant,
+
+    grid_sweep = exercise_module("ex03_gauss_seidel").grid_sweep
+    ex04, ex09 = exercise_module("ex04_graph_scene_flow"), exercise_module("ex09_track_management")
+    _ex04_L, knn_laplacian_variant = ex04._ex04_L, ex04.knn_laplacian_variant
+    _ex09_random_frames, expected_frames, manage_variant = (
+        ex09._ex09_random_frames, ex09.expected_frames, ex09.manage_variant
     )
 
     rng = np.random.default_rng(0)
@@ -873,7 +424,8 @@ def test_variant_functions_default_to_the_reference():
 def test_public_tests_catch_the_classic_mistakes():
     from scipy.optimize import linear_sum_assignment
 
-    from flowtrack_course.grading.exercises.ex08_hungarian import greedy_pairs, medium_matrix
+    ex08 = exercise_module("ex08_hungarian")
+    greedy_pairs, medium_matrix = ex08.greedy_pairs, ex08.medium_matrix
 
     C = medium_matrix()
     r, c = linear_sum_assignment(C)
@@ -897,7 +449,9 @@ def test_gauss_seidel_rate_is_the_square_of_the_jacobi_rate():
     import scipy.linalg
 
     from flowtrack.variational import red_black_sweep
-    from flowtrack_course.grading.exercises.ex03_gauss_seidel import jacobi_radius, model_matrix
+
+    ex03 = exercise_module("ex03_gauss_seidel")
+    jacobi_radius, model_matrix = ex03.jacobi_radius, ex03.model_matrix
 
     for H, W, f in ((6, 6, 2.0), (4, 7, 5.0), (1, 9, 1.0)):
         dt = 0.2
@@ -921,7 +475,9 @@ def test_solver_sweep_budget_is_ample_for_gauss_seidel_and_jacobi():
     """The solver tests pass max_sweeps (a stagnating solver then stops in seconds): the hardest
     hidden stratum (8x10, lam = 5 dt^2) needs far fewer red-black or Jacobi sweeps than that."""
     from flowtrack.variational import red_black_sweep
-    from flowtrack_course.grading.exercises.ex03_gauss_seidel import _SOLVE_SWEEPS, grid_sweep, model_matrix
+
+    ex03 = exercise_module("ex03_gauss_seidel")
+    _SOLVE_SWEEPS, grid_sweep, model_matrix = ex03._SOLVE_SWEEPS, ex03.grid_sweep, ex03.model_matrix
 
     rng = np.random.default_rng(3)
     for dt in (0.05, 0.5):

@@ -21,8 +21,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from flowtrack_course.grading.exercises import EXERCISES
-from flowtrack_course.grading.release import WORKED_ANSWER_TAG, bundle_links, release, student_lesson
+from flowtrack_course.grading.assign.release import WORKED_ANSWER_TAG, bundle_links, release, student_lesson
 from flowtrack_course.notebooks import read_notebook
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -225,7 +224,7 @@ def test_check_runs_without_open3d_nbgrader_or_the_book_stack():
         "for m in ('open3d', 'nbgrader', 'jupytext', 'sphinx', 'myst_nb', 'nbclient'):\n"
         "    sys.modules[m] = None\n"
         "from flowtrack_course.grading.check import check_notebook\n"
-        f"sys.exit(check_notebook({str(ROOT / 'exercises' / 'ex05_cv_model.ipynb')!r}))\n"
+        f"sys.exit(check_notebook({str(ROOT / 'exercises' / 'ex05_cv_model' / 'ex05_cv_model.ipynb')!r}))\n"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
@@ -234,13 +233,14 @@ def test_check_runs_without_open3d_nbgrader_or_the_book_stack():
 
 def test_exercise_texts_do_not_print_another_exercises_answer():
     text = {
-        ex.id: "\n".join(
+        nb.parent.name: "\n".join(
             "".join(c["source"])
-            for c in json.loads((ROOT / "exercises" / ex.notebook).read_text(encoding="utf-8"))["cells"]
+            for c in json.loads(nb.read_text(encoding="utf-8"))["cells"]
             if c["cell_type"] == "markdown"
         )
-        for ex in EXERCISES
+        for nb in sorted((ROOT / "exercises").glob("ex*/ex*.ipynb"))
     }
+    assert len(text) >= 12
     jacobian = re.compile(r"-\s*f_x\s*X\s*/\s*Z\^2")  # ex01's answer, written out
     assert not any(jacobian.search(t) for k, t in text.items()), [
         k for k, t in text.items() if jacobian.search(t)
@@ -252,3 +252,32 @@ def test_exercise_texts_do_not_print_another_exercises_answer():
     assert not any(unexcited.search(t) for t in text.values())
     other_order = re.compile(r"\[p_x,\s*v_x,\s*p_y,\s*v_y\][^.]*(\bis\b|=)\s*\$?\\?(operatorname\{)?blkdiag")
     assert not any(other_order.search(t) for k, t in text.items() if k != "ex11_concepts")
+
+
+def test_a_bundle_with_checks_checks_its_exercises_on_its_own(tmp_path):
+    """A student's `flowtrack check` in a bundle made ``--with-checks`` (no course checkout around)
+    finds the exercise's grading module there; such a bundle holds each exercise's grading files and
+    nothing else of the course's exercise folders (no notebook with its solutions, worked solution or
+    test answers). A plain bundle holds no grading module."""
+    import os
+
+    plain = tmp_path / "plain"
+    release(plain, source=ROOT)
+    assert not list((plain / "exercises").glob("ex*/*.py"))
+    bundle = tmp_path / "bundle"
+    release(bundle, source=ROOT, with_checks=True)
+    ids = sorted(p.parent.name for p in (ROOT / "exercises").glob("ex*/grading.py"))
+    assert ids and all((bundle / "exercises" / i / "grading.py").is_file() for i in ids)
+    leaked = [p for p in (bundle / "exercises").glob("ex*/*") if p.suffix in (".ipynb", ".md")
+              or p.name == "cases.py"]
+    assert not leaked, leaked
+    env = {k: v for k, v in os.environ.items() if k != "FLOWTRACK_COURSE"}
+    code = ("import sys\nfrom flowtrack_course.cli import main\n"
+            "sys.exit(main(['check', 'exercises/ex05_cv_model.ipynb']))\n")
+    r = subprocess.run([sys.executable, "-c", code], cwd=bundle, env=env, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 1, r.stdout + r.stderr  # the released stub fails its public tests ...
+    assert "public score: 0 / 3" in r.stdout  # ... graded by the bundle's own copy of the tests
+    r = subprocess.run([sys.executable, "-c", code], cwd=plain, env=env, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2 and "holds no exercise's grading module" in r.stderr, r.stderr

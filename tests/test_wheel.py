@@ -12,7 +12,8 @@ would not do: a venv made from this venv's interpreter sees the *base* interpret
 this venv's.)
 
 Then, from an unrelated folder and with ``$FLOWTRACK_COURSE`` unset, the installed ``flowtrack``
-command runs ``release --course <checkout>`` and ``ports --lang octave --course <checkout>``.
+command runs ``release``, ``check``, ``grade``, ``gradescope`` and ``ports --lang octave``, each with
+``--course <checkout>`` (the exercises are the course's folders, not part of the wheel).
 Octave is a Debian package (``make test`` installs it); without it the test fails, never skips.
 """
 
@@ -67,12 +68,14 @@ def installed(tmp_path_factory):
 
 def test_the_wheel_is_what_the_fresh_environment_imports(installed, tmp_path):
     venv, env = installed
-    code = ("import flowtrack, flowtrack_course.grading.grade as g; "
-            "print(flowtrack.__file__); print(g.__file__)")
+    code = ("import flowtrack, flowtrack_course.grading.engine.run as g, grading_sandbox as s; "
+            "print(flowtrack.__file__); print(g.__file__); print(s.__file__)")
     out = _run([venv / "bin" / "python", "-c", code], tmp_path, env)
     for line in out.split():
         assert Path(line).is_relative_to(venv), f"{line} is not the installed wheel's"
         assert not Path(line).is_relative_to(ROOT)
+    site = Path(out.split()[0]).parents[1]
+    assert not (site / "grading_sandbox" / "tests").exists()  # the sandbox's tests stay in the checkout
 
 
 def test_release_from_another_folder_with_course(installed, tmp_path):
@@ -83,7 +86,7 @@ def test_release_from_another_folder_with_course(installed, tmp_path):
                elsewhere, env)
     assert "wrote" in out
     assert sorted(p.name for p in (tmp_path / "bundle" / "exercises").glob("*.ipynb")) == sorted(
-        p.name for p in (ROOT / "exercises").glob("*.ipynb"))
+        p.name for p in (ROOT / "exercises").glob("*/*.ipynb"))
     n_lessons = len(list((ROOT / "lessons").glob("[0-9]*.md")))
     assert len(list((tmp_path / "bundle" / "lessons").glob("*.ipynb"))) == n_lessons
     # without --course (and no $FLOWTRACK_COURSE) the current folder is the course: a clear error
@@ -102,3 +105,31 @@ def test_octave_port_from_another_folder_with_course(installed, tmp_path):
     out = _run([venv / "bin" / "flowtrack", "ports", "--lang", "octave", "--course", ROOT, "--build-dir",
                 tmp_path / "build", "--no-progress"], tmp_path, env)
     assert "octave" in out and " 0 failed" in out, out
+
+
+def test_check_grade_and_gradescope_from_another_folder_with_course(installed, tmp_path):
+    venv, env = installed
+    flowtrack = venv / "bin" / "flowtrack"
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    solution = ROOT / "exercises" / "ex05_cv_model" / "ex05_cv_model.ipynb"
+    out = _run([flowtrack, "check", "--course", ROOT, solution], elsewhere, env)
+    assert "public score: 3 / 3" in out
+    subs = tmp_path / "subs"
+    (subs / "ana").mkdir(parents=True)
+    shutil.copy(solution, subs / "ana" / solution.name)
+    out = _run([flowtrack, "grade", "--course", ROOT, subs, "--out", tmp_path / "graded", "--no-progress"],
+               elsewhere, env)
+    assert "graded 1 students" in out
+    table = (tmp_path / "graded" / "grades.csv").read_text().splitlines()
+    header, row = table[0].split(","), dict(zip(table[0].split(","), table[1].split(",")))
+    assert header[0] == "student" and "ex05_cv_model" in header and float(row["ex05_cv_model"]) == 10.0
+    _run([flowtrack, "gradescope", "--course", ROOT, "--out", tmp_path / "ag.zip", "--exercises", "ex05"],
+         elsewhere, env)
+    assert (tmp_path / "ag.zip").is_file()
+    import zipfile
+
+    with zipfile.ZipFile(tmp_path / "ag.zip") as zf:
+        names = zf.namelist()
+    assert "course/exercises/ex05_cv_model/grading.py" in names
+    assert "flowtrack/reference_impl/grading_sandbox/sandbox.py" in names

@@ -257,18 +257,20 @@ def _index_toc(sources: list[_Source]) -> str:
 
 #: The API reference's page in the book (``api.html``), generated from the docstrings.
 API_PAGE = "api.md"
-#: The packages it documents: the library, then the course's tooling.
+#: The packages it documents: the library, the course's tooling, the sandbox.
 API_PACKAGES = (
     ("flowtrack", "The library: flowtrack",
      "What lessons, exercises and ports are checked against; it never imports the tooling."),
     ("flowtrack_course", "The course's tooling: flowtrack_course",
      "Grading, port harnesses, the book, notebooks, widgets, the demo app and the ``flowtrack`` command."),
+    ("grading_sandbox", "The sandbox: grading_sandbox",
+     "Runs student code for the grader and sends back plain data; it knows nothing of the course."),
 )
 
 
 def api_modules(package: str) -> list[str]:
     """The public modules of ``package`` (itself first, then every module and sub-package whose
-    dotted name has no part starting with ``_``), sorted.
+    dotted name has no part starting with ``_`` and no ``tests`` part), sorted.
 
     Examples
     --------
@@ -281,7 +283,8 @@ def api_modules(package: str) -> list[str]:
 
     pkg = importlib.import_module(package)
     names = [m.name for m in pkgutil.walk_packages(pkg.__path__, prefix=package + ".")]
-    return [package, *sorted(n for n in names if not any(p.startswith("_") for p in n.split(".")))]
+    public = [n for n in names if not any(p.startswith("_") or p == "tests" for p in n.split("."))]
+    return [package, *sorted(public)]
 
 
 def _api_page() -> str:
@@ -290,9 +293,10 @@ def _api_page() -> str:
     lines = [
         "# API reference",
         "",
-        "Every public module of the two packages, generated from the docstrings (the contracts: names,",
+        "Every public module of the three packages, generated from the docstrings (the contracts: names,",
         "arguments, shapes, raised errors). `flowtrack` is the library; `flowtrack_course` the tooling",
-        "built on it (see the architecture notes, `docs/ARCHITECTURE.md` in the repository).",
+        "built on it; `grading_sandbox` the sandbox the grader runs student code in (see the architecture",
+        "notes, `docs/ARCHITECTURE.md` in the repository).",
         "",
     ]
     documented = {mod: api_members(mod) for mod in _public_modules()}

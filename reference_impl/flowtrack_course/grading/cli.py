@@ -1,7 +1,9 @@
-"""The autograder's sub-commands of ``flowtrack``: ``release``, ``check``, ``grade``, ``gradescope``.
+"""The autograder's sub-commands of ``flowtrack``: ``release``, ``check``, ``grade``, ``export``,
+``gradescope``.
 
 Only argument parsing lives here (imports stay light: ``flowtrack --help`` imports this module);
-the work is done by :mod:`.release`, :mod:`.check`, :mod:`.grade` and :mod:`.gradescope`.
+the work is done by the commands' folders (the packages ``assign``, ``check``, ``grade`` and
+``export`` of :mod:`flowtrack_course.grading`).
 """
 
 from __future__ import annotations
@@ -16,9 +18,9 @@ __all__ = ["register"]
 
 
 def _cmd_release(args: argparse.Namespace) -> int:
-    from .release import release
+    from .assign.release import release
 
-    info = release(args.out, source=args.source, force=args.force)
+    info = release(args.out, source=args.source, force=args.force, with_checks=args.with_checks)
     print(
         f"wrote {info['out']}: {len(info['lessons'])} lessons, {len(info['exercises'])} exercises "
         "(no solutions, hidden tests or outputs)"
@@ -27,14 +29,14 @@ def _cmd_release(args: argparse.Namespace) -> int:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    from .check import check_notebook
+    from .check.check import check_notebook
 
-    return check_notebook(args.notebook)
+    return check_notebook(args.notebook, course=args.course)
 
 
 def _secret(path: str | None) -> bytes | None:
     """The instructor's seed key of ``--secret-file`` (created if missing), or None with a warning."""
-    from .spec import read_secret
+    from .engine.seeds import read_secret
 
     if path is None:
         print(
@@ -43,9 +45,9 @@ def _secret(path: str | None) -> bytes | None:
             file=sys.stderr,
         )
         return None
-    from .keys import check_key_file
+    from .grade.keys import check_key_file
 
-    check_key_file(path)  # issue 18 hook: refuse a key others can read (InsecureKeyError, a ValueError)
+    check_key_file(path)  # refuse a key others can read (InsecureKeyError, a ValueError)
     existed = Path(path).exists()
     secret = read_secret(path, create=True)
     if not existed:
@@ -64,26 +66,34 @@ def _add_secret_option(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
-    # issue 18 hook: layout checks, re-grade reasons, class report, LMS export live in instructor.py
-    from .grade import UnsafeSandbox
-    from .instructor import run_grade
+    # layout checks, re-grade reasons, class report and LMS export: grade.command.run_grade
+    from ..course import use_course
+    from .engine.classrun import UnsafeSandbox
+    from .engine.jobs import ClassJob, GradingOptions
+    from .grade.command import run_grade
+    from .sources import course_catalog
 
+    # the course of this run, also for the worker processes (their fork server reads the variable)
+    course = use_course(args.course, need=("exercises",))
+
+    options = GradingOptions(
+        secret=_secret(args.secret_file),
+        hidden_paths=(args.secret_file,) if args.secret_file else (),
+        hidden_visibility=args.hidden_visibility,
+        force=args.force,
+    )
+    job = ClassJob(
+        args.submissions, args.out, catalog=course_catalog(course), jobs=args.jobs, options=options,
+        allow_unsafe_sandbox=args.allow_unsafe_sandbox, progress=not args.no_progress,
+    )
     try:
         run = run_grade(
-            args.submissions,
-            args.out,
-            jobs=args.jobs,
-            force=args.force,
-            hidden_visibility=args.hidden_visibility,
+            job,
             assignment=args.assignment,
-            progress=not args.no_progress,
-            secret=_secret(args.secret_file),
             accept_renamed=args.accept_renamed,
             roster=args.roster,
             lms=args.lms,
             lms_mode="exercises" if args.lms_per_exercise else "total",
-            hidden_paths=[args.secret_file] if args.secret_file else [],
-            allow_unsafe_sandbox=args.allow_unsafe_sandbox,
         )
     except UnsafeSandbox as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -96,7 +106,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from .lms import export_lms
+    from .export.lms import export_lms
 
     path, warnings = export_lms(
         args.lms, args.grades, args.out, roster=args.roster,
@@ -110,7 +120,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_gradescope(args: argparse.Namespace) -> int:
-    from .gradescope import build_autograder
+    from .export.gradescope import build_autograder
 
     _secret(args.secret_file)  # creates a missing key (and says so), or warns that there is none
     path = build_autograder(
@@ -121,7 +131,8 @@ def _cmd_gradescope(args: argparse.Namespace) -> int:
 
 
 def _add_instructor_options(p: argparse.ArgumentParser) -> None:
-    """``flowtrack grade`` options of issue 18: renamed copies, roster, LMS export."""
+    """``flowtrack grade``'s options for what an LMS delivers and takes: renamed copies, roster, LMS
+    export."""
     p.add_argument(
         "--accept-renamed",
         action="store_true",
@@ -187,6 +198,12 @@ def register(subparsers) -> None:
         "current folder)",
     )
     p.add_argument("--force", action="store_true", help="replace OUT even if it is not an earlier bundle")
+    p.add_argument(
+        "--with-checks", action="store_true",
+        help="also copy each exercise's grading module into OUT/exercises/<id>/, so that students can run "
+        "`flowtrack check` without the course (those modules compute the expected values with the "
+        "reference and draw the hidden inputs, which stay keyed by your --secret-file)",
+    )
     p.set_defaults(func=_cmd_release)
 
     p = subparsers.add_parser(
@@ -198,7 +215,12 @@ def register(subparsers) -> None:
             "score. Exit status 0 when every public test passes, 1 otherwise."
         ),
     )
-    p.add_argument("notebook", help="the exercise notebook, e.g. exercises/01_projection_jacobian.ipynb")
+    p.add_argument("notebook", help="the exercise notebook, e.g. exercises/ex01_projection_jacobian.ipynb")
+    p.add_argument(
+        "--course", metavar="DIR", default=None,
+        help="the course folder (or bundle) with exercises/ (default: $FLOWTRACK_COURSE, else the current "
+        "folder, else the folder above NOTEBOOK that holds exercises/)",
+    )
     p.set_defaults(func=_cmd_check)
 
     p = subparsers.add_parser(
@@ -229,10 +251,14 @@ def register(subparsers) -> None:
         "whose in-process guard a determined student can get around (other students' work, the output "
         "folder and the seed key become readable)",
     )
+    p.add_argument(
+        "--course", metavar="DIR", default=None,
+        help="the course folder with exercises/ (default: $FLOWTRACK_COURSE, else the current folder)",
+    )
     _add_secret_option(p)
-    _add_instructor_options(p)  # issue 18 hook
+    _add_instructor_options(p)
     p.set_defaults(func=_cmd_grade)
-    _add_export_command(subparsers)  # issue 18 hook
+    _add_export_command(subparsers)
 
     p = subparsers.add_parser(
         "gradescope",
@@ -244,14 +270,14 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument("--out", default="autograder.zip", help="zip to write (default: autograder.zip)")
-    p.add_argument(  # issue 18 hook
+    p.add_argument(
         "--exercises", default=None, metavar="IDS",
         help="comma-separated exercise ids graded by this autograder, e.g. ex01_projection_jacobian,"
         "ex05_cv_model (default: all)",
     )
     p.add_argument(
         "--course", metavar="DIR", default=None,
-        help="the course checkout holding pyproject.toml and reference_impl/ (default: "
+        help="the course checkout holding pyproject.toml, reference_impl/ and exercises/ (default: "
         "$FLOWTRACK_COURSE, else the current folder)",
     )
     _add_secret_option(p)

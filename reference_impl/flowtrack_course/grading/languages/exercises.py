@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..spec import Call, Exercise, GradedTest, Outcome, as_float_array
+from ..engine.spec import Call, Exercise, GradedTest, Outcome, as_float_array
 from .driver import driver_cell
 from .problems import PROBLEMS, Problem
 from .toolchains import TOOLCHAINS, Toolchain, support_text
@@ -254,6 +254,7 @@ def _exercise(language: str, problem: Problem) -> LanguageExercise:
         answer_cells=(tc.source_name(problem.name),),
         blocked=tuple(b for b in BLOCKED if b != "scipy.optimize") if language == "mathics" else BLOCKED,
         allowed=MATHICS_ALLOWED if language == "mathics" else None,
+        packages=("flowtrack",),
         tests=tests,
         language=language,
         problem=problem.name,

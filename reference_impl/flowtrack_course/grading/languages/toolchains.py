@@ -204,7 +204,7 @@ LANGUAGES: tuple[str, ...] = tuple(TOOLCHAINS)
 
 
 def _cache_dir(language: str) -> Path:
-    from ..cache import cache_root
+    from grading_sandbox.cache import cache_root
 
     d = cache_root() / "languages" / language
     d.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,151 @@
+"""Ex06: Kalman predict and update: the trusted tests of the notebook next to this file."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from flowtrack_course.grading.engine.authoring import (
+    Check,
+    Exercise,
+    Mistake,
+    Variant,
+    array_check,
+    graded_test,
+    tuple_check,
+)
+
+
+def _ex06_model(rng, n: int, m: int):
+    A = rng.normal(size=(n, n))
+    P = A @ A.T + 0.1 * np.eye(n)
+    B = rng.normal(size=(n, n))
+    Q = 0.1 * (B @ B.T)
+    F = np.eye(n) + 0.3 * rng.normal(size=(n, n))
+    H = rng.normal(size=(m, n))
+    C = rng.normal(size=(m, m))
+    R = C @ C.T + 0.2 * np.eye(m)
+    x = rng.normal(size=n)
+    z = rng.normal(size=m)
+    return x, P, F, Q, z, H, R
+
+
+def _ex06_predict(x, P, F, Q):
+    from flowtrack.kalman import KalmanFilter
+
+    m = 1
+    kf = KalmanFilter(F, np.zeros((m, len(x))), Q, np.eye(m), x, P)
+    kf.predict()
+    return kf.x, kf.P
+
+
+def _ex06_update(x, P, z, H, R):
+    from flowtrack.kalman import KalmanFilter
+
+    n = len(x)
+    kf = KalmanFilter(np.eye(n), H, np.zeros((n, n)), R, x, P)
+    kf.update(z)
+    return kf.x, kf.P
+
+
+def _state_check(
+    expected: tuple[np.ndarray, np.ndarray],
+    x_variants: Sequence[Variant] = (),
+    P_variants: Sequence[Variant] = (),
+) -> Check:
+    return tuple_check(
+        [array_check(expected[0], rtol=1e-6, atol=1e-9, variants=x_variants),
+         array_check(expected[1], rtol=1e-6, atol=1e-9, variants=P_variants)],
+        ("x", "P"),
+    )
+
+
+def _predict_check(x, P, F, Q) -> Check:
+    return _state_check(_ex06_predict(x, P, F, Q), P_variants=[Variant("predict-without-Q", F @ P @ F.T)])
+
+
+def _update_check(x, P, z, H, R) -> Check:
+    """The update, recognising S = H P H^T (no R) in x and in either form of P."""
+    S0 = H @ P @ H.T
+    K0 = np.linalg.solve(S0, H @ P).T
+    x0 = x + K0 @ (z - H @ x)
+    IKH = np.eye(len(x)) - K0 @ H
+    P_short = IKH @ P
+    P_joseph = IKH @ P @ IKH.T + K0 @ R @ K0.T
+    return _state_check(
+        _ex06_update(x, P, z, H, R),
+        x_variants=[Variant("innovation-without-R", x0)],
+        P_variants=[Variant("innovation-without-R", 0.5 * (P_short + P_short.T)),
+                    Variant("innovation-without-R", P_joseph)],
+    )
+
+
+_EX06_F = np.array([[1.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+_EX06_Q = 0.01 * np.eye(4)
+_EX06_H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+_EX06_R = 0.5 * np.eye(2)
+_EX06_x = np.array([0.0, 0.0, 1.0, 2.0])
+_EX06_P = np.eye(4)
+_EX06_z = np.array([1.5, 1.0])
+
+
+@graded_test("predict: constant-velocity model", "test_predict", 1.0, hidden=False)
+def _ex06_predict_public(rng):
+    args = (_EX06_x, _EX06_P, _EX06_F, _EX06_Q)
+    return [("kf_predict", args, {}, _predict_check(*args))]
+
+
+@graded_test("predict: random models", "test_predict", 3.0, hidden=True)
+def _ex06_predict_hidden(rng):
+    out = []
+    for n in (1, 3, 4, 6):
+        x, P, F, Q, *_ = _ex06_model(rng, n, 1)
+        out.append(("kf_predict", (x, P, F, Q), {}, _predict_check(x, P, F, Q)))
+    return out
+
+
+@graded_test("update: position measurement", "test_update", 2.0, hidden=False)
+def _ex06_update_public(rng):
+    args = (_EX06_x, 2.0 * _EX06_P, _EX06_z, _EX06_H, _EX06_R)
+    return [("kf_update", args, {}, _update_check(*args))]
+
+
+@graded_test("update: random models", "test_update", 4.0, hidden=True)
+def _ex06_update_hidden(rng):
+    out = []
+    for n, m in ((1, 1), (4, 2), (6, 3), (3, 3)):
+        x, P, _, _, z, H, R = _ex06_model(rng, n, m)
+        out.append(("kf_update", (x, P, z, H, R), {}, _update_check(x, P, z, H, R)))
+    return out
+
+
+# The catalogued mistakes this exercise defines: stable ids (instructors' reports count them
+# across terms), what the mistake is, why it is wrong, which lesson section explains it.
+_L4 = "lesson 04_bayes_and_kalman"
+
+MISTAKES = (
+    Mistake(
+        "innovation-without-R",
+        "the innovation covariance lacks R: S = H P H^T + R, the measurement noise adds to the "
+        f"predicted spread (without it the filter trusts the measurement too much); see {_L4} §4",
+    ),
+    Mistake(
+        "predict-without-Q",
+        "the predicted covariance lacks Q: P = F P F^T + Q, the process noise is what keeps the "
+        f"filter from becoming over-confident; see {_L4} §2 and §6",
+    ),
+)
+
+
+EXERCISE = Exercise(
+    id="ex06_kalman_predict_update",
+    title="Kalman predict and update",
+    notebook="ex06_kalman_predict_update.ipynb",
+    answer_cells=("kf_predict", "kf_update"),
+    blocked=("flowtrack.kalman", "flowtrack.tracking", "flowtrack.particle", "flowtrack.bayes"),
+    allowed=('numpy', 'scipy.linalg'),
+    tests=(_ex06_predict_public, _ex06_predict_hidden, _ex06_update_public, _ex06_update_hidden),
+    packages=("flowtrack",),
+    mistakes=MISTAKES,
+)

@@ -1,0 +1,299 @@
+"""Grading a class (:func:`run_class`): every student folder of SUBMISSIONS, in worker processes.
+
+Outputs (``out`` is the ``--out`` folder)::
+
+    out/grades.csv                 student, one column per exercise id, total, max
+    out/<student>/...              see :mod:`.student`
+
+(The nbgrader gradebook and the reports are the exports', written by the command that runs this.)
+Student code runs under bubblewrap; where it cannot (:func:`grading_sandbox.choose_mode`) the run
+stops with :class:`UnsafeSandbox` unless the job allows the fallback. Each worker process grades one
+student after the other with :func:`~.student.grade_student`; a worker receives a
+:class:`~.jobs.StudentJob` whose exercises it looks up by id in the job's catalog (picklable: it
+discovers the course again, once per process).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from flowtrack.validation import positive_int
+
+from .jobs import ClassJob, StudentJob
+from .results import round_score, write_atomic
+from .run import preload_modules
+from .spec import Exercise
+from .student import exercises_hash, grade_student
+
+__all__ = [
+    "GRADER_RESERVE",
+    "RESERVED_NAMES",
+    "UnsafeSandbox",
+    "close_shared_pools",
+    "list_students",
+    "run_class",
+]
+
+# What a class run writes into its output folder beside the student folders: a student folder of one
+# of these names is refused (it would turn the grader's own output into a folder).
+RESERVED_NAMES = frozenset(
+    {"grades.csv", "gradebook.db", "gradebook.db-journal", "gradebook.db-wal", "gradebook.db-shm",
+     "misconceptions.csv"}
+)
+_STUDENT_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.@+\-]{0,127}$")
+#: disk space the grader keeps for its outputs where students write to the same filesystem
+GRADER_RESERVE = 32 << 20
+
+
+class UnsafeSandbox(RuntimeError):
+    """A class run where bubblewrap cannot isolate student code, and the fallback was not allowed."""
+
+
+def list_students(submissions: str | os.PathLike) -> list[str]:
+    """The student folders of ``submissions`` (sorted; hidden folders ignored).
+
+    Raises
+    ------
+    FileNotFoundError
+        ``submissions`` is not a folder.
+    ValueError
+        A folder name is not a safe student id (letters, digits, ``_.@+-``).
+    """
+    root = Path(submissions)
+    if not root.is_dir():
+        raise FileNotFoundError(f"submissions: no such folder: {root}")
+    names = sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
+    bad = [n for n in names if not _STUDENT_NAME.match(n)]
+    if bad:
+        raise ValueError(f"submissions: student folder names must match {_STUDENT_NAME.pattern}, got {bad}")
+    return names
+
+
+_POOLS: dict[tuple, Any] = {}
+
+
+def _shared_pool(preload: tuple[str, ...]) -> Any:
+    """This process's :class:`grading_sandbox.SandboxPool` (a grading worker's): its zygotes serve
+    one student after the other; closed when the process exits."""
+    pool = _POOLS.get(preload)
+    if pool is None:
+        from multiprocessing import util
+
+        from grading_sandbox import SandboxPool
+
+        pool = _POOLS[preload] = SandboxPool(preload)
+        util.Finalize(None, pool.close, exitpriority=10)  # run at a worker's exit (atexit is not)
+    return pool
+
+
+def close_shared_pools() -> None:
+    """Kill the sandboxes of this process's shared pools."""
+    pools = list(_POOLS.values())
+    _POOLS.clear()
+    for pool in pools:
+        pool.close()
+
+
+@dataclass(frozen=True)
+class _Task:
+    """What a worker process receives: a student's job whose exercises are given by id, and where
+    to look them up."""
+
+    job: StudentJob
+    exercise_ids: tuple[str, ...]
+    catalog: Any
+
+
+def _grade(job: StudentJob) -> dict:
+    """Grade one student; an error is reported in the summary (the class goes on) and leaves no
+    results.json of an earlier run standing for this one."""
+    try:
+        pool = None
+        if job.options.reuse_sandboxes and job.options.sandbox_factory is None:
+            pool = _shared_pool(preload_modules(job.exercises))
+        return grade_student(job, sandbox_pool=pool)
+    except Exception as exc:
+        try:
+            (Path(job.out) / job.student / "results.json").unlink(missing_ok=True)
+        except OSError:
+            pass
+        return {"student": job.student, "error": f"{type(exc).__name__}: {exc}"}
+
+
+def _worker(task: _Task) -> dict:
+    """A worker process's task: the exercises looked up by id in the catalog, then :func:`_grade`."""
+    try:
+        exercises = tuple(task.catalog.get(i) for i in task.exercise_ids)
+    except Exception as exc:
+        return {"student": task.job.student, "error": f"{type(exc).__name__}: {exc}"}
+    return _grade(replace(task.job, exercises=exercises))
+
+
+def _write_grades_csv(path: Path, rows: Iterable[dict], exercises: Sequence[Exercise]) -> None:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["student", *[ex.id for ex in exercises], "total", "max"])
+    max_total = round_score(sum(ex.max_score for ex in exercises))
+    for row in rows:
+        scores = row.get("exercises", {})
+        w.writerow(
+            [row["student"], *[f"{scores.get(ex.id, 0.0):g}" for ex in exercises],
+             f"{row.get('score', 0.0):g}", f"{max_total:g}"]
+        )
+    write_atomic(path, buf.getvalue())
+
+
+def _check_disk_reserve(out: str | os.PathLike, jobs: int) -> None:
+    """Refuse to grade where students could fill the filesystem of the outputs.
+
+    Outside bubblewrap the students' files are on the host (the sandbox's work area, the
+    world-writable folders), each student's bounded by the meter at ``disk_bytes`` plus what it
+    writes between two measurements (counted as ``disk_bytes`` again). See
+    :func:`grading_sandbox.isolation.disk_reserve_problem`.
+    """
+    from grading_sandbox import Limits
+    from grading_sandbox.cache import cache_root
+    from grading_sandbox.isolation import WORLD_WRITABLE, disk_reserve_problem
+
+    students_max = jobs * 2 * Limits().disk_bytes
+    problem = disk_reserve_problem([cache_root() / "work", *WORLD_WRITABLE], [out, tempfile.gettempdir()],
+                                   students_max, GRADER_RESERVE)
+    if problem:
+        raise UnsafeSandbox(problem)
+
+
+def _check_isolation(job: ClassJob, hidden: Sequence[str], n_students: int) -> None:
+    """Raise :class:`UnsafeSandbox` where student code would not be isolated from the grader."""
+    from grading_sandbox import choose_mode, readable_by_sandbox
+
+    mode, why = choose_mode()
+    if mode == "setpriv" and not job.allow_unsafe_sandbox:
+        # no namespaces: the student's uid sees what file permissions let any user see
+        job.out.mkdir(mode=0o700, parents=True, exist_ok=True)  # a new one: private
+        exposed = readable_by_sandbox(hidden)
+        if exposed:
+            raise UnsafeSandbox(
+                f"bubblewrap cannot isolate student code here ({why}); the setpriv sandbox runs it as an "
+                "unprivileged uid, which can read " + ", ".join(exposed) + ". Make them private to "
+                "the grader (chmod go-rwx " + " ".join(exposed) + "), or pass --allow-unsafe-sandbox."
+            )
+    elif mode != "bwrap" and not job.allow_unsafe_sandbox:
+        raise UnsafeSandbox(
+            f"bubblewrap cannot isolate student code here ({why}). The fallback sandbox runs it as a "
+            "plain process behind an in-process audit hook that a determined student can get around "
+            "(e.g. with ctypes): they could then read other students' submissions, the output folder "
+            "and the seed key, and the machine's other files. Install bubblewrap (apt-get install "
+            "bubblewrap) and allow unprivileged user namespaces, or pass --allow-unsafe-sandbox "
+            "(allow_unsafe_sandbox=True) to grade anyway."
+        )
+    if mode != "bwrap":
+        _check_disk_reserve(job.out, min(job.jobs, max(1, n_students)))
+
+
+def run_class(job: ClassJob) -> tuple[list[dict], tuple[Exercise, ...], list[str]]:
+    """Grade every student folder of ``job.submissions`` into ``job.out`` (see the module docstring).
+
+    The fallback still refuses ``submissions``, ``out``, the course and ``options.hidden_paths``
+    (e.g. the key file) to the code it runs. A student folder named like one of the grader's own
+    outputs (:data:`RESERVED_NAMES`) is not graded and reported as an error. ``job.jobs`` worker
+    processes grade students in parallel (each runs its own sandboxes); one job grades in this
+    process, as do exercises not in the catalog and a sandbox stand-in (tests' fakes).
+
+    Returns
+    -------
+    rows : list of dict
+        One summary per student (sorted by student; :func:`~.student.grade_student`).
+    exercises : tuple of Exercise
+        The exercises graded (the columns of ``grades.csv``).
+    students : list of str
+        The student folders found (those refused included).
+    """
+    from tqdm.auto import tqdm
+
+    positive_int(job.jobs, "jobs")
+    log = job.log or (lambda msg: print(msg, file=sys.stderr))
+    exercises = job.resolved()
+    catalog = job.catalog
+    # what the setpriv mode must find unreadable by the sandbox's uid, and what the fallback hides
+    # (the course too: its exercise folders hold the grading modules and the worked solutions)
+    private = job.options.hiding(job.submissions, job.out).hidden_paths
+    options = job.options.hiding(job.submissions, job.out, *([catalog.root] if catalog is not None else []))
+    # Workers look exercises up by id; exercises not in the catalog (tests' fakes) grade in-process.
+    known = {ex.id: ex for ex in catalog.everything()} if catalog is not None else {}
+    custom = options.sandbox_factory is not None or any(known.get(ex.id) is not ex for ex in exercises)
+    students = list_students(job.submissions)
+    if options.sandbox_factory is None:
+        _check_isolation(job, private, len(students))
+    job.out.mkdir(parents=True, exist_ok=True)
+    ex_hash = exercises_hash(exercises)
+    reserved = [s for s in students if s.lower() in RESERVED_NAMES]
+    jobs = [
+        StudentJob(s, job.submissions / s, job.out, exercises, options, ex_hash, job.renamed.get(s) or {})
+        for s in students if s not in reserved
+    ]
+    summaries: dict[str, dict] = {}
+    bar = tqdm(total=len(jobs), desc="grading", unit="student", disable=not job.progress)
+    if job.jobs == 1 or len(jobs) <= 1 or custom:
+        try:
+            for sj in jobs:
+                summaries[sj.student] = _grade(sj)
+                bar.update(1)
+        finally:
+            close_shared_pools()
+    else:
+        summaries.update(_in_workers(jobs, catalog, job.jobs, bar))
+    bar.close()
+    for s in reserved:
+        summaries[s] = {"student": s, "error": f"the folder name {s!r} is reserved for the grader's outputs "
+                        "(rename the student's folder)"}
+    rows = [summaries[s] for s in students]
+    isolations = {r.get("isolation", "") for r in rows}
+    for iso in sorted(i for i in isolations if i.startswith("fallback")):
+        log(f"warning: sandbox isolation is {iso!r}: student code ran without the full bubblewrap sandbox")
+    for r in rows:
+        if "error" in r:
+            log(f"error: student {r['student']}: {r['error']} (scored 0; re-run grade to retry)")
+    _write_grades_csv(job.out / "grades.csv", rows, exercises)
+    return rows, exercises, students
+
+
+def _in_workers(jobs: list[StudentJob], catalog: Any, n_workers: int, bar) -> dict[str, dict]:
+    """Grade ``jobs`` in ``n_workers`` processes (a worker that dies gets its students retried once)."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    summaries: dict[str, dict] = {}
+    pending = [_Task(replace(sj, exercises=()), tuple(ex.id for ex in sj.exercises), catalog) for sj in jobs]
+    for _attempt in range(2):
+        ctx = mp.get_context("forkserver" if sys.platform.startswith("linux") else "spawn")
+        if ctx.get_start_method() == "forkserver":
+            # the fork server imports the grader and builds the public tests once, before it
+            # forks the workers (ignored when it already runs)
+            ctx.set_forkserver_preload([f"{__package__}._warm"])
+        broken = []
+        with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx) as pool:
+            futures = {pool.submit(_worker, t): t for t in pending}
+            for fut in as_completed(futures):
+                task = futures[fut]
+                try:
+                    summaries[task.job.student] = fut.result()
+                    bar.update(1)
+                except BrokenProcessPool:
+                    broken.append(task)
+        pending = broken
+        if not pending:
+            break
+    for task in pending:
+        summaries[task.job.student] = {"student": task.job.student, "error": "a grading worker died"}
+        bar.update(1)
+    return summaries

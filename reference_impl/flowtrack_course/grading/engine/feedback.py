@@ -1,0 +1,351 @@
+r"""Feedback that shows the difference without leaking hidden data.
+
+A check's message is a :class:`Report`: a ``str`` (what a student sees of a *public* test: expected
+against got, the worst entry and its index) that also carries ``safe``, the text a student may see of
+a *hidden* test (which check failed and why: a shape, the share of wrong entries, the worst relative
+error and its index, a timeout with its limit, an exception's type and line, never an input or an
+expected value), and ``mistakes``, the catalogued mistakes recognised from the student's outputs
+(:mod:`.mistakes`). Test-level feedback: one line per cause (:func:`explain_cascade`,
+:func:`cell_problems`), which function to fix first (:func:`apply_dependencies`) and the lines a
+student sees of a test (:func:`feedback_lines`).
+
+Examples
+--------
+>>> import numpy as np
+>>> from grading_sandbox import Outcome
+>>> r = compare(Outcome(True, [[-1.0, -2.0]]), np.array([[1.0, 2.0]]))
+>>> r.ok, list(r.mistakes)
+(False, ['generic-sign'])
+>>> "expected" in r.public and "expected" not in r.safe
+True
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from grading_sandbox import Outcome
+
+from .compare import as_float_array
+from .mistakes import Catalogue, Variant, diagnose, visible_variants
+
+__all__ = [
+    "Diff",
+    "Report",
+    "apply_dependencies",
+    "cell_problems",
+    "compare",
+    "explain_cascade",
+    "feedback_lines",
+    "mistake_records",
+    "safe_error",
+    "safe_text",
+]
+
+
+class Report(str):
+    """A check's message: the public text (``str`` value), the hidden-safe text and the mistakes.
+
+    ``mistakes`` is a tuple of catalogue ids, in the order recognised, without repeats; ``checked``
+    the catalogued ids that were visible on these inputs (their wrong answer differs from the right
+    one). A test names a mistake only when every call where it was visible matched it
+    (:func:`consistent_mistakes`): one coincidence among several calls names nothing.
+    """
+
+    safe: str
+    mistakes: tuple[str, ...]
+    checked: frozenset[str]
+
+    def __new__(
+        cls, public: str, safe: str | None = None, mistakes: Iterable[str] = (), checked: Iterable[str] = ()
+    ):
+        obj = super().__new__(cls, public)
+        obj.safe = str(public) if safe is None else str(safe)
+        seen: list[str] = []
+        for m in mistakes:
+            if m not in seen:
+                seen.append(m)
+        obj.mistakes = tuple(seen)
+        obj.checked = frozenset(checked) | frozenset(m for m in seen if not m.startswith("generic-"))
+        return obj
+
+
+def safe_text(message: Any) -> str:
+    """The hidden-safe text of a message (a plain ``str`` has none: only a generic sentence)."""
+    safe = getattr(message, "safe", None)
+    return str(safe) if safe is not None else "the results differ from the expected ones"
+
+
+_LOCATION = re.compile(r'File "(<cell [^>]*>)", line (\d+)')
+_LAST = re.compile(r"^([A-Za-z_][A-Za-z0-9_.]*(?:Error|Exception|Warning|Interrupt|Exit))\b")
+
+
+def safe_error(error: str) -> str:
+    """An error of a hidden call without anything the student's code could have put in it.
+
+    The exception's type and the cell line where it was raised are kept, its text is not (a
+    student's code sees the hidden inputs and could print them into an exception); the grader's own
+    reasons (time limit, output limit, memory) are kept whole.
+
+    >>> safe_error('Traceback ...\\n  File "<cell f>", line 3, in f\\nValueError: x = [0.123, 4.5]')
+    'ValueError (raised at <cell f> line 3)'
+    >>> safe_error("timed out")
+    'timed out (the time limit of this test was exceeded)'
+    """
+    text = str(error or "the call failed").strip()
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    last = lines[-1].strip() if lines else text
+    if "Traceback" not in text and not _LAST.match(last):
+        if text == "timed out":
+            return "timed out (the time limit of this test was exceeded)"
+        # the grader's own messages (limits, missing functions, a cell that failed) hold no data
+        return text[:300]
+    m = _LAST.match(last)
+    kind = m.group(1) if m else "an exception"
+    where = _LOCATION.findall(text)
+    at = f" (raised at {where[-1][0]} line {where[-1][1]})" if where else ""
+    if kind.endswith("NotImplementedError"):
+        return "NotImplementedError: the function is not implemented yet"
+    return f"{kind}{at}"
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.6g}"
+
+
+def _fmt_array(a: np.ndarray) -> str:
+    return np.array2string(np.asarray(a), precision=6, separator=", ", threshold=40, max_line_width=100)
+
+
+def _index(idx: tuple[int, ...]) -> str:
+    return "[" + ", ".join(str(int(i)) for i in idx) + "]"
+
+
+@dataclass(frozen=True)
+class Diff:
+    """The result of :func:`compare`: ``ok``, the public and the hidden-safe texts, the mistakes."""
+
+    ok: bool
+    public: str
+    safe: str
+    mistakes: tuple[str, ...] = ()
+    checked: tuple[str, ...] = ()
+
+    def report(self) -> Report:
+        return Report(self.public, self.safe, self.mistakes, self.checked)
+
+
+def compare(
+    outcome: Outcome,
+    expected: np.ndarray,
+    rtol: float = 1e-6,
+    atol: float = 1e-9,
+    variants: Sequence[Variant] = (),
+) -> Diff:
+    """Compare one outcome with the expected array and say how they differ.
+
+    The public text shows expected against got (whole arrays when small) and the worst entry with
+    its index; the safe text only the shape, the share of wrong entries, the worst relative error and
+    its index.
+    """
+    expected = np.asarray(expected, dtype=np.float64)
+    checked = tuple(visible_variants(expected, variants, rtol, atol))
+    if not outcome.ok:
+        err = outcome.error or "the call failed"
+        return Diff(False, err, safe_error(err), (), checked)
+    got = as_float_array(outcome.value, expected.shape)
+    if got is None:
+        got_any = as_float_array(outcome.value)
+        if got_any is None:
+            msg = "the result is not an array of numbers"
+            return Diff(False, msg, msg)
+        msg = f"expected an array of shape {expected.shape}, got shape {got_any.shape}"
+        mistakes = tuple(diagnose(got_any, expected, variants, rtol, atol))
+        return Diff(False, msg, msg, mistakes, checked)
+    n = expected.size
+    fin_e = np.isfinite(expected)
+    fin_g = np.isfinite(got)
+    bad_nonfinite = (fin_e != fin_g) | (
+        ~fin_e & ~fin_g & ~((got == expected) | (np.isnan(got) & np.isnan(expected)))
+    )
+    err = np.zeros_like(expected)
+    both = fin_e & fin_g
+    err[both] = np.abs(got[both] - expected[both])
+    bound = atol + rtol * np.abs(np.where(fin_e, expected, 0.0))
+    bad = bad_nonfinite | (both & (err > bound))
+    if not bad.any():
+        return Diff(True, "ok", "ok", (), checked)
+    mistakes = tuple(diagnose(got, expected, variants, rtol, atol))
+    k = int(bad.sum())
+    tolerance = f"rtol={rtol:g}, atol={atol:g}"
+    if bad_nonfinite.any():
+        idx = tuple(int(i) for i in np.argwhere(bad_nonfinite)[0])
+        public = (
+            f"{int(bad_nonfinite.sum())} of {n} entries are non-finite where the expected value is finite "
+            f"or the other way round (+inf, -inf and NaN are different); first at {_index(idx)}: "
+            f"expected {_fmt(expected[idx])}, got {_fmt(got[idx])}"
+        )
+        safe = (
+            f"{int(bad_nonfinite.sum())} of {n} entries are inf/NaN where a finite value is expected, or "
+            f"the other way round (first at entry {_index(idx)})"
+        )
+    else:
+        rel = np.where(bad, err / np.maximum(np.abs(expected), atol if atol > 0 else 1e-300), 0.0)
+        excess = np.where(bad, err - bound, -np.inf)
+        idx = tuple(int(i) for i in np.unravel_index(int(np.argmax(excess)), expected.shape))
+        public = (
+            f"values differ at {k} of {n} entries; worst at {_index(idx)}: expected {_fmt(expected[idx])}, "
+            f"got {_fmt(got[idx])} ({tolerance})"
+        )
+        worst_rel = float(rel[idx])
+        rel_text = (
+            f"relative error {worst_rel:.2g}"
+            if np.isfinite(worst_rel) and expected[idx] != 0
+            else ("a nonzero value where zero is expected")
+        )
+        # the absolute tolerance may be scaled by the expected values: only the relative one is shown
+        safe = (
+            f"values differ at {k} of {n} entries; the worst, at entry {_index(idx)}: {rel_text} "
+            f"(rtol={rtol:g})"
+        )
+    if n <= 24:
+        public += f"\n    expected {_fmt_array(expected)}\n    got      {_fmt_array(got)}"
+    return Diff(False, public, safe, mistakes, checked)
+
+
+# --------------------------------------------------------------------------------------------------
+# test-level feedback: one line per cause, dependencies, the lines a student sees
+
+_NO_FUNCTION = re.compile(
+    r"there is no function named '([^']+)'|no function named '([^']+)' was defined"
+    r"|NameError: name '([^']+)' is not defined"
+)
+
+
+def _one_line(text: str) -> str:
+    """``text`` on one line: newlines, other control characters and lone surrogates escaped."""
+    out = []
+    for ch in str(text):
+        if ch == "\n":
+            out.append("\\n")
+        elif ch == "\\" or ch.isprintable() or ch == " ":
+            out.append(ch)
+        else:  # control characters, lone surrogates (unwritable as UTF-8), other unprintables
+            out.append(ch.encode("unicode_escape").decode("ascii"))
+    return "".join(out)
+
+
+def _cause(text: str) -> str:
+    """The exception of a traceback (``ImportError: ...``) on one line, with where it was raised.
+
+    The exception's whole message is kept (a multi-line message is not cut to its last line) and
+    escaped onto one line: its newlines as ``\\n``, a lone surrogate as ``\\ud800``.
+
+    >>> _cause('Traceback (most recent call last):\\n  File "<cell f>", line 2, in <module>\\n'
+    ...        'ValueError: \\ud800 bad\\n<!--')
+    'ValueError: \\\\ud800 bad\\\\n<!-- (at <cell f> line 2)'
+    """
+    text = str(text)
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    # the exception starts after the last "  File ..." line and its indented source lines
+    start = 0
+    for i, ln in enumerate(lines):
+        if ln.startswith('  File "'):
+            start = i + 1
+    while start and start < len(lines) and lines[start].startswith("    "):
+        start += 1
+    if start == 0 and lines and lines[0].startswith("Traceback"):
+        start = 1
+    exc = "\n".join(lines[start:]).strip() or text.strip()
+    where = _LOCATION.findall(text)
+    return _one_line(exc)[:300] + (f" (at {where[-1][0]} line {where[-1][1]})" if where else "")
+
+
+def explain_cascade(outcomes: Sequence[Outcome], cell_errors: dict[str, str]) -> list[Outcome]:
+    """Replace "no function named f" by the cause when an answer cell failed to run.
+
+    A cell that fails (an ImportError of a blocked module, a syntax error) leaves its functions
+    undefined; every call of them would otherwise report a NameError of its own.
+    """
+    if not cell_errors:
+        return list(outcomes)
+    out = []
+    for o in outcomes:
+        m = _NO_FUNCTION.search(o.error or "") if not o.ok else None
+        if m is None:
+            out.append(o)
+            continue
+        name = m.group(1) or m.group(2) or m.group(3)
+        gid = name if name in cell_errors else next(iter(cell_errors))
+        out.append(
+            Outcome(False, None, f"not run: answer cell {gid!r} failed to run: {_cause(cell_errors[gid])}")
+        )
+    return out
+
+
+def cell_problems(cell_errors: dict[str, str], order: Sequence[str]) -> list[str]:
+    """One problem line per failed answer cell; a NameError after an earlier failure says so."""
+    lines = []
+    failed: list[str] = []
+    for gid in [g for g in order if g in cell_errors] + [g for g in cell_errors if g not in order]:
+        cause = _cause(cell_errors[gid])
+        if failed and cause.startswith("NameError"):
+            cause += f" (probably because cell {failed[0]!r} failed above: fix that first)"
+        lines.append(f"cell {gid!r} failed to run: {cause}")
+        failed.append(gid)
+    return lines
+
+
+def apply_dependencies(depends: Sequence, tests: list) -> list:
+    """Tests (``TestResult``) of a function built on another that fails too: say which to fix first.
+
+    ``depends`` are the exercise's :class:`~.spec.Dependency`\\ s (``test``, ``on``, ``function``,
+    ``builds``).
+    """
+    import dataclasses
+
+    deps = {d.test: d for d in depends}
+    failed = {t.grade_id for t in tests if not t.passed}
+    out = []
+    for t in tests:
+        dep = deps.get(t.grade_id)
+        if dep is not None and not t.passed and dep.on in failed:
+            lead = (
+                f"fix `{dep.function}` first: `{dep.builds}` builds on it and its tests fail too (this "
+                "test may pass once it is right). "
+            )
+            t = dataclasses.replace(t, message=lead + t.message, safe_message=lead + (t.safe_message or ""))
+        out.append(t)
+    return out
+
+
+def feedback_lines(
+    test, *, hidden: bool, with_message: bool = True, catalogue: Catalogue | None = None
+) -> list[str]:
+    """What a student sees of one test beyond its score: the (safe) message and the mistake lines
+    (their messages from ``catalogue``, default the generic mistakes only)."""
+    lines = []
+    if with_message and not test.passed:
+        text = test.safe_message if hidden else test.message
+        if text:
+            lines.append(text)
+    lines += (catalogue or Catalogue()).lines(getattr(test, "mistakes", ()))
+    return lines
+
+
+def mistake_records(results: Sequence) -> list[dict]:
+    """``[{"exercise", "id", "tests"}]`` of the mistakes recognised in ``ExerciseResult``\\ s."""
+    records: dict[tuple[str, str], dict] = {}
+    for r in results:
+        for t in r.tests:
+            for m in t.mistakes:
+                rec = records.setdefault(
+                    (r.exercise_id, m), {"exercise": r.exercise_id, "id": m, "tests": []}
+                )
+                rec["tests"].append(t.name)
+    return list(records.values())
