@@ -325,8 +325,7 @@ def run_direct(subs: Path, students: list[tuple[str, str]], work: Path) -> tuple
     """The peer: build and run every language item of ``students`` without a sandbox."""
     import json
 
-    from flowtrack_course.grading.languages import public_vectors
-    from flowtrack_course.grading.languages.problems import PROBLEMS
+    from flowtrack_course.grading.languages import PROBLEMS, public_vectors
 
     items = 0
     t0 = time.perf_counter()
@@ -339,7 +338,7 @@ def run_direct(subs: Path, students: list[tuple[str, str]], work: Path) -> tuple
             shutil.copy(subs / name / "exercises" / ex.notebook, d / src)
             for rel, text in tc.support_files(ex.problem).items():
                 (d / rel).write_text(text)
-            for rel, data in tc.blobs(ex.problem).items():
+            for rel, data in ex.harness_blobs().items():
                 (d / rel).write_bytes(data)
             doc = public_vectors(PROBLEMS[ex.problem])
             (d / "cases.json").write_text(json.dumps(doc))
@@ -363,8 +362,8 @@ def languages_main(args) -> int:
     n = args.students or (3 if args.quick else 20)
     jobs = 2
     for ex in bench:  # warm the per-language caches (grader-made artefacts only)
-        ex.toolchain.blobs(ex.problem)
-    langs = list(TOOLCHAINS)
+        ex.harness_blobs()
+    langs = [lang for lang, tc in TOOLCHAINS.items() if tc.graded]
     per_lang = {}
     with tempfile.TemporaryDirectory(prefix="bench-grading-lang-") as tmp:
         tmp = Path(tmp)

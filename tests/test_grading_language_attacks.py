@@ -23,8 +23,8 @@ import pytest
 
 from flowtrack_course.grading.grade import run_exercise
 from flowtrack_course.grading.languages import TOOLCHAINS, find_language_exercise, strip_solutions
-from flowtrack_course.grading.languages import toolchains as toolchains_module
 from flowtrack_course.grading.sandbox import bwrap_status
+from flowtrack_course.polyglot import toolchains as toolchains_module
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 

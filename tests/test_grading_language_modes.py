@@ -84,7 +84,7 @@ def test_fallback_solution_full_marks(ex_id, tmp_path, monkeypatch, tmp_path_fac
 def test_exercises_hash_covers_the_language_files(tmp_path, monkeypatch):
     ex = find_language_exercise("cpp_kalman_step")
     names = {p.name for p in ex.source_files()}
-    assert {"driver.py", "toolchains.py", "problems.py", "harness.cpp", "kalman_step.hpp"} <= names
+    assert {"driver.py", "toolchains.py", "cpp.py", "kalman.py", "harness.cpp", "kalman_step.hpp"} <= names
     java = {p.name for p in find_language_exercise("java_cv_model").source_files()}
     assert {"Harness.java", "CvModel.java"} <= java
     octave = {p.name for p in find_language_exercise("octave_cv_model").source_files()}

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["CATALOGUE", "GENERIC", "Mistake", "mistake_line"]
+__all__ = ["CATALOGUE", "GENERIC", "OTHER_LANGUAGES", "Mistake", "mistake_line"]
 
 
 @dataclass(frozen=True)
@@ -318,6 +318,29 @@ _ENTRIES = [
     Mistake("lambda-log10", "ex11_concepts", f"this looks like log10(λ): give λ itself; see {_L2} §6"),
 ]
 
+# recognised only in answers in other languages (flowtrack_course.polyglot.problems), where one
+# function does a whole filter step or takes the intrinsics as arguments; ``exercise`` is the problem
+OTHER_LANGUAGES = [
+    Mistake(
+        "kalman-no-predict",
+        "kalman_step",
+        "the update starts from x and P as they were: a step first predicts them (x = F x, "
+        f"P = F P F^T + Q), then updates the prediction with z; see {_L4} §2 and §4",
+    ),
+    Mistake(
+        "kalman-prior-cov",
+        "kalman_step",
+        "P is the predicted covariance F P F^T + Q: the update must shrink it, P = (I - K H) P "
+        f"(the measurement adds information); see {_L4} §4",
+    ),
+    Mistake(
+        "jacobian-no-focal",
+        "projection_jacobian",
+        "the focal lengths are missing: u = fx X/Z + cx and v = fy Y/Z + cy, so row 0 of the Jacobian "
+        f"carries fx and row 1 fy; see {_L1} §1-2",
+    ),
+]
+
 GENERIC = [
     Mistake(
         "generic-sign",
@@ -345,7 +368,7 @@ GENERIC = [
     ),
 ]
 
-CATALOGUE: dict[str, Mistake] = {m.id: m for m in _ENTRIES + GENERIC}
+CATALOGUE: dict[str, Mistake] = {m.id: m for m in _ENTRIES + OTHER_LANGUAGES + GENERIC}
 
 
 def mistake_line(mistake_id: str) -> str:

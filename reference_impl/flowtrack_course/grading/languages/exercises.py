@@ -7,17 +7,24 @@ driver (:mod:`flowtrack_course.grading.languages.driver`) carrying that file. ``
 its cells with :meth:`LanguageExercise.extract_cells`; everything else (sandbox, seeds, scoring,
 feedback, ``results.json``, ``grades.csv``) is the notebooks' machinery.
 
+The problems, their cases and their catalogued mistakes are those of
+:mod:`flowtrack_course.polyglot.problems` (the ports' vectors come from the same definitions); how
+each language is built and run is its :mod:`flowtrack_course.polyglot` toolchain.
+
 Tests: a public test on the problem's fixed inputs (1 point) and a hidden test on inputs drawn from
 the student's keyed seed (2 points). Each is one call of the driver's ``run_cases`` with the cases
 in the shared vectors format (inputs only). The scorer compares every output with the Python
 reference's under the problem's tolerances (``|got - exp| <= atol + rtol |exp|``): the fraction of
-the points is the mean over cases of the share of correct outputs. An output that matches one of
-the problem's catalogued mistakes, or a generic one (``generic-sign``, ``generic-transpose``,
-``generic-scale``), adds a ``mistake <id>: <message>`` line to the message.
+the points is the mean over cases of the share of correct outputs. A wrong output is explained by
+the notebooks' detector (:func:`flowtrack_course.grading.exercises.feedback.diagnose`): one of the
+problem's catalogued mistakes, or a generic one the problem allows (``generic-sign``,
+``generic-transpose``, ``generic-scale``); each adds the catalogue's line ``mistake <id>: <message>``
+(the same id and message as in the notebooks) to the message.
 """
 
 from __future__ import annotations
 
+import inspect
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -25,10 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ... import polyglot
+from ...polyglot.problems import GRADED_PROBLEMS, Problem
+from ...polyglot.toolchains import GRADED_LANGUAGES, TOOLCHAINS, Toolchain
+from ...polyglot.vectors import dumps
+from ..exercises.catalogue import mistake_line
+from ..exercises.feedback import Variant, diagnose
 from ..spec import Call, Exercise, GradedTest, Outcome, as_float_array
 from .driver import driver_cell
-from .problems import PROBLEMS, Problem
-from .toolchains import TOOLCHAINS, Toolchain, support_text
 
 __all__ = [
     "BLOCKED",
@@ -50,6 +61,7 @@ BLOCKED = (
     "flowtrack.camera",
     "flowtrack.association",
     "flowtrack.tracking",
+    "flowtrack_course.polyglot",
     "flowtrack_course.ports",
     "flowtrack.symbolic",
     "scipy.optimize",
@@ -87,13 +99,25 @@ class LanguageExercise(Exercise):
         return self.toolchain.inproc(self.problem) is None
 
     def source_files(self) -> list[Path]:
-        """The grader's files this item's grading depends on beyond its tests' module: the driver, the
-        toolchains and problems modules and the language's harness files (``exercises_hash`` hashes
-        them, so a change of any of them re-grades finished students)."""
+        """The grader's files this item's grading depends on beyond its tests' module: the driver,
+        the scoring, the polyglot stack's modules that build and run the language and define the
+        problem, and the language's harness files (``exercises_hash`` hashes them, so a change of any
+        of them re-grades finished students)."""
         here = Path(__file__).resolve().parent
-        files = [here / "driver.py", here / "toolchains.py", here / "problems.py", here / "exercises.py"]
-        files += sorted(p for p in (here / "files" / self.language).rglob("*") if p.is_file())
+        stack = Path(polyglot.__file__).resolve().parent
+        problem = Path(inspect.getsourcefile(GRADED_PROBLEMS[self.problem].reference)).resolve()
+        files = [here / "driver.py", here / "exercises.py"]
+        files += [stack / f for f in ("base.py", "vectors.py", "toolchains.py", f"{self.language}.py")]
+        files += [stack / "problems" / "base.py", problem]
+        files += sorted(p for p in (stack / "files" / self.language).rglob("*") if p.is_file())
         return files
+
+    def harness_blobs(self) -> dict[str, bytes]:
+        """The harness artefacts built from the grader's own sources (the C++ object, the Java class),
+        cached in the sandbox cache that every student's sandbox reads."""
+        from ..cache import cache_root
+
+        return self.toolchain.blobs(self.problem, cache_root() / "languages" / self.language)
 
     def extract_cells(self, path: Path) -> tuple[list[tuple[str, str]], list[str]]:
         """The driver cell carrying the student's file ``path``, or ``([], [why])``."""
@@ -109,7 +133,7 @@ class LanguageExercise(Exercise):
             return [], [f"{name} is not UTF-8 text"]
         tc = self.toolchain
         try:
-            blobs = tc.blobs(self.problem)
+            blobs = self.harness_blobs()
         except Exception as exc:  # a missing toolchain is the grading machine's problem: say so
             return [], [f"cannot grade {tc.title} here: {exc}"]
         cell = driver_cell(
@@ -132,26 +156,19 @@ def _matches(got: np.ndarray, want: np.ndarray, rtol: float, atol: float) -> boo
     return got.shape == want.shape and bool(np.all(np.abs(got - want) <= atol + rtol * np.abs(want)))
 
 
-def _generic_mistake(got: np.ndarray, exp: np.ndarray, rtol: float, atol: float) -> str | None:
-    if not np.any(np.abs(exp) > atol):
-        return None
-    if _matches(got, -exp, rtol, atol):
-        return "generic-sign"
-    if exp.ndim == 2 and exp.shape[0] == exp.shape[1] and _matches(got, exp.T, rtol, atol):
-        return "generic-transpose"
-    big = np.abs(exp) > atol
-    ratio = got[big] / exp[big]
-    if ratio.size and np.all(np.isfinite(ratio)) and abs(ratio[0] - 1) > 1e-6 and ratio[0] != 0:
-        if _matches(got, ratio[0] * exp, rtol, atol):
-            return "generic-scale"
-    return None
-
-
-_GENERIC = {
-    "generic-sign": "the result has the opposite sign",
-    "generic-transpose": "the result is the transpose of the expected matrix",
-    "generic-scale": "the result is off by a constant factor",
-}
+def _mistake(problem: Problem, case: dict, name: str, got: np.ndarray, want: np.ndarray) -> str | None:
+    """The catalogued mistake (or allowed generic one) that explains output ``name`` of one case."""
+    variants = []
+    for mid, wrong in problem.mistakes:
+        try:
+            alt = wrong(case["input"]).get(name)
+        except Exception:  # a mistaken formula may not apply to these inputs
+            alt = None
+        if alt is not None:
+            variants.append(Variant(mid, np.asarray(alt, dtype=float)))
+    found = [m for m in diagnose(got, want, variants, problem.rtol, problem.atol)
+             if not m.startswith("generic-") or m in problem.generic]
+    return found[0] if found else None
 
 
 def _score_cases(
@@ -189,20 +206,9 @@ def _score_cases(
                 continue
             worst = float(np.max(np.abs(got - want)))
             notes.append(f"case {case['id']}: {name} differs (largest error {worst:.3g})")
-            found = None
-            for mid, msg, wrong in problem.mistakes:
-                try:
-                    alt = wrong(case["input"]).get(name)
-                except Exception:  # a mistaken formula may not apply to these inputs
-                    alt = None
-                if alt is not None and _matches(got, np.asarray(alt, float), problem.rtol, problem.atol):
-                    found = (mid, msg)
-                    break
-            if found is None:
-                gid = _generic_mistake(got, want, problem.rtol, problem.atol)
-                found = (gid, f"{name}: {_GENERIC[gid]}") if gid else None
+            found = _mistake(problem, case, name, got, want)
             if found:
-                mistakes.setdefault(found[0], found[1])
+                mistakes.setdefault(found, mistake_line(found))
         fractions.append(good / max(1, len(exp)))
     score = float(np.mean(fractions)) if fractions else 0.0
     n_ok = sum(f >= 1.0 for f in fractions)
@@ -211,20 +217,18 @@ def _score_cases(
     lines = [f"{n_ok}/{len(cases)} cases correct"]
     if show:
         lines += notes[:6] + (["..."] if len(notes) > 6 else [])
-    lines += [f"mistake {mid}: {msg}" for mid, msg in mistakes.items()]
+    lines += list(mistakes.values())
     return score, "\n".join(lines)
 
 
 def _test(problem: Problem, hidden: bool) -> GradedTest:
     def build(rng: np.random.Generator):
-        inputs = problem.hidden(rng) if hidden else problem.public()
-        cases = [
-            {"id": f"{'hidden' if hidden else 'public'}-{i}", "input": inp} for i, inp in enumerate(inputs)
-        ]
+        chosen = problem.hidden_cases(rng) if hidden else problem.public_cases()
+        doc = problem.document(chosen, expected=False)
+        cases = doc["cases"]
         expected = [
             {k: np.asarray(v, float) for k, v in problem.reference(c["input"]).items()} for c in cases
         ]
-        doc = {"problem": problem.name, "cases": cases}
 
         def scorer(outcomes: Sequence[Outcome]) -> tuple[float, str]:
             if len(outcomes) != 1:
@@ -233,7 +237,7 @@ def _test(problem: Problem, hidden: bool) -> GradedTest:
 
         return [Call("run_cases", (doc,))], scorer
 
-    build.__wrapped__ = problem.reference  # grade.exercises_hash hashes the module defining the problem
+    build.__wrapped__ = problem.reference  # exercises_hash hashes the module defining the problem
     name = f"{'hidden' if hidden else 'public'}: {problem.title}"
     return GradedTest(
         name, f"test_{problem.name}", HIDDEN_POINTS if hidden else PUBLIC_POINTS, hidden, build, timeout=0.0
@@ -261,7 +265,7 @@ def _exercise(language: str, problem: Problem) -> LanguageExercise:
 
 
 LANGUAGE_EXERCISES: tuple[LanguageExercise, ...] = tuple(
-    _exercise(lang, p) for lang in TOOLCHAINS for p in PROBLEMS.values()
+    _exercise(lang, p) for lang in GRADED_LANGUAGES for p in GRADED_PROBLEMS.values()
     if p.languages is None or lang in p.languages
 )
 
@@ -287,12 +291,6 @@ def find_language_exercise(key: str | Path) -> LanguageExercise | None:
 _BLOCK = re.compile(
     r"^([ \t]*)(?://|%|\(\*)\s*BEGIN SOLUTION.*?^[ \t]*(?://|%|\(\*)\s*END SOLUTION[^\n]*\n", re.M | re.S
 )
-_TODO = {
-    "cpp": "// YOUR CODE HERE",
-    "java": "// YOUR CODE HERE",
-    "octave": "% YOUR CODE HERE",
-    "mathics": "(* YOUR CODE HERE *)",
-}
 
 
 def strip_solutions(text: str, language: str) -> str:
@@ -306,7 +304,8 @@ def strip_solutions(text: str, language: str) -> str:
       % YOUR CODE HERE
     end
     """
-    out = _BLOCK.sub(lambda m: f"{m.group(1)}{_TODO[language]}\n", text)
+    todo = TOOLCHAINS[language].todo
+    out = _BLOCK.sub(lambda m: f"{m.group(1)}{todo}\n", text)
     if "BEGIN SOLUTION" in out or "END SOLUTION" in out:
         raise ValueError("text: unbalanced BEGIN SOLUTION / END SOLUTION markers")
     return out
@@ -314,60 +313,21 @@ def strip_solutions(text: str, language: str) -> str:
 
 def public_vectors(problem: Problem) -> dict:
     """The public cases of ``problem`` in the shared vectors format, expected values included."""
-    cases = []
-    for i, inp in enumerate(problem.public()):
-        expected = {k: np.asarray(v, dtype=float).tolist() for k, v in problem.reference(inp).items()}
-        cases.append(
-            {
-                "id": f"public-{i}",
-                "input": inp,
-                "expected": expected,
-                "rtol": problem.rtol,
-                "atol": problem.atol,
-            }
-        )
-    return {"problem": problem.name, "cases": cases}
+    return problem.document(problem.public_cases())
 
 
 def materialise(ex: LanguageExercise, source_dir: Path, dest: Path, *, stub: bool) -> list[Path]:
     """Write the exercise's folder into ``dest``: the student file (its stub with ``stub=True``), the
     grader's support files, the public tests' vectors ``public.json`` and the local build files."""
-    from ...ports.vectors import dumps
-
     tc = ex.toolchain
     dest.mkdir(parents=True, exist_ok=True)
     name = tc.source_name(ex.problem)
     text = (source_dir / name).read_text(encoding="utf-8")
     files = {name: strip_solutions(text, ex.language) if stub else text}
-    if ex.language == "cpp":
-        files["exercise.hpp"] = support_text("cpp", f"{ex.problem}.hpp")
-        files["harness.cpp"] = support_text("cpp", "harness.cpp")
-        files["CMakeLists.txt"] = support_text("cpp", "CMakeLists.txt").replace("@PROBLEM@", ex.problem)
-    elif ex.language == "java":
-        from .toolchains import FILES, JAVA_CLASSPATH
-
-        files["Harness.java"] = support_text("java", "Harness.java")
-        (dest / "api").mkdir(exist_ok=True)
-        for p in sorted((FILES / "java" / "api").iterdir(), key=lambda p: p.name):
-            if p.name.endswith(".java") and p.name != name:  # the other exercises' signatures
-                files[f"api/{p.name}"] = p.read_text(encoding="utf-8")
-        files["run_public_tests.sh"] = (
-            f"#!/bin/sh\n# Compile and run the public tests of {ex.problem}:  sh run_public_tests.sh\n"
-            f"set -e\nCP={JAVA_CLASSPATH}\nmkdir -p classes\n"
-            'javac -encoding UTF-8 -cp "$CP" -sourcepath api -implicit:class -d classes '
-            f"Harness.java {name}\n"
-            f'java -cp "classes:$CP" Harness --check {ex.problem} public.json\n'
-        )
-    elif ex.language == "mathics":
-        files["ft_mathics.py"] = support_text("mathics", "ft_mathics.py")
-    else:
-        files["ft_harness.m"] = support_text("octave", "ft_harness.m")
-        files["run_public_tests.m"] = (
-            f"% Run the public tests of {ex.problem}:  octave-cli --norc run_public_tests.m\n"
-            f"ok = ft_harness('{ex.problem}', 'public.json', true);\nif ~ok\n  exit(1);\nend\n"
-        )
-    doc = public_vectors(PROBLEMS[ex.problem])
-    files["public.json"] = dumps(doc)
+    files.update(tc.bundle_files(ex.problem))
+    files["public.json"] = dumps(public_vectors(GRADED_PROBLEMS[ex.problem]))
+    for rel in files:
+        (dest / rel).parent.mkdir(parents=True, exist_ok=True)
     written = []
     for rel, body in files.items():
         p = dest / rel
@@ -382,7 +342,7 @@ def answered_exercises(student_dir: str | Path) -> tuple[LanguageExercise, ...]:
     root = Path(student_dir)
     if not root.is_dir():
         return ()
-    exts = {tc.extension for tc in TOOLCHAINS.values()}
+    exts = {TOOLCHAINS[lang].extension for lang in GRADED_LANGUAGES}
     names = {p.name for p in root.rglob("*") if p.suffix in exts}
     return tuple(ex for ex in LANGUAGE_EXERCISES if Path(ex.notebook).name in names)
 
