@@ -300,23 +300,30 @@ def run_accounted(cmd: list[str], **kwargs) -> tuple[float, float, str]:
     return wall, cpu, "rusage of reaped children (undercounts sandboxes)"
 
 
+def _languages():
+    """The course's answers in other languages (this checkout's), as the grader discovers them."""
+    from flowtrack_course.grading.engine.discovery import discover
+    from flowtrack_course.grading.languages import LanguageSource
+
+    return LanguageSource(discover(ROOT))
+
+
 def bench_items(languages=None) -> list:
     """The language items of the bar: the four problems every language has (not the C++ assignment)."""
-    from flowtrack_course.grading.languages import LANGUAGE_EXERCISES
-
-    return [ex for ex in LANGUAGE_EXERCISES
+    return [ex for ex in _languages().exercises()
             if ex.problem in PROBLEM_ORDER and (languages is None or ex.language in languages)]
 
 
 def make_language_class(dest: Path, n_students: int, languages=None) -> list[tuple[str, str]]:
     from flowtrack_course.grading.languages import strip_solutions
 
+    source = _languages()
     students = []
     for s in range(n_students):
         kind = KINDS[s % 3]
         name = f"s{s:03d}_{kind}"
         for ex in bench_items(languages):
-            text = (ROOT / "exercises" / ex.notebook).read_text()
+            text = source.instructor_source(ex).read_text()
             if kind == "stub" or (kind == "partial" and PROBLEM_ORDER.index(ex.problem) % 2):
                 text = strip_solutions(text, ex.language)
             p = dest / name / "exercises" / ex.notebook
@@ -333,8 +340,7 @@ def run_direct(subs: Path, students: list[tuple[str, str]], work: Path) -> tuple
     """The peer: build and run every language item of ``students`` without a sandbox."""
     import json
 
-    from flowtrack_course.grading.languages import public_vectors
-    from flowtrack_course.grading.languages.problems import PROBLEMS
+    from flowtrack_course.grading.languages import PROBLEMS, public_vectors
 
     items = 0
     t0 = time.perf_counter()
@@ -347,7 +353,7 @@ def run_direct(subs: Path, students: list[tuple[str, str]], work: Path) -> tuple
             shutil.copy(subs / name / "exercises" / ex.notebook, d / src)
             for rel, text in tc.support_files(ex.problem).items():
                 (d / rel).write_text(text)
-            for rel, data in tc.blobs(ex.problem).items():
+            for rel, data in ex.harness_blobs().items():
                 (d / rel).write_bytes(data)
             doc = public_vectors(PROBLEMS[ex.problem])
             (d / "cases.json").write_text(json.dumps(doc))
@@ -372,8 +378,8 @@ def languages_main(args) -> int:
     n = args.students or (3 if args.quick else 20)
     jobs = 2
     for ex in bench:  # warm the per-language caches (grader-made artefacts only)
-        ex.toolchain.blobs(ex.problem)
-    langs = list(TOOLCHAINS)
+        ex.harness_blobs()
+    langs = [lang for lang, tc in TOOLCHAINS.items() if tc.graded]
     per_lang = {}
     with tempfile.TemporaryDirectory(prefix="bench-grading-lang-") as tmp:
         tmp = Path(tmp)

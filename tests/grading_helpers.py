@@ -14,6 +14,7 @@ from typing import ClassVar
 from flowtrack_course.grading.engine.discovery import discover
 from flowtrack_course.grading.engine.jobs import ClassJob, GradingOptions, StudentJob
 from flowtrack_course.grading.engine.spec import Outcome
+from flowtrack_course.grading.languages import LanguageSource
 from flowtrack_course.grading.sources import course_catalog
 from grading_sandbox.testing import SANDBOX_MODES, use_sandbox_mode
 from grading_sandbox.wire import plain_data
@@ -22,6 +23,8 @@ __all__ = [
     "COURSE",
     "COURSE_SET",
     "EXERCISES",
+    "LANGUAGES",
+    "LANGUAGE_EXERCISES",
     "SANDBOX_MODES",
     "RecordingSandbox",
     "StandInSandbox",
@@ -33,7 +36,9 @@ __all__ = [
     "run_grade_with",
     "student_job",
     "exercise_module",
+    "find_language_exercise",
     "get_exercise",
+    "instructor_source",
     "replace_solution",
     "source_notebook",
     "use_sandbox_mode",
@@ -44,6 +49,9 @@ COURSE = Path(__file__).resolve().parents[1]
 #: the course's exercises, as the grader discovers them
 COURSE_SET = discover(COURSE)
 EXERCISES = COURSE_SET.exercises
+#: the course's answers in other languages, as the grader discovers them
+LANGUAGES = LanguageSource(COURSE_SET)
+LANGUAGE_EXERCISES = LANGUAGES.exercises()
 
 
 def catalog():
@@ -54,6 +62,18 @@ def catalog():
 def get_exercise(key):
     """An exercise of the course by id, notebook name or path (``KeyError`` when there is none)."""
     return COURSE_SET.get(key)
+
+
+def find_language_exercise(key):
+    """A language exercise of the course by id or source file name (None when there is none)."""
+    return LANGUAGES.find(key)
+
+
+def instructor_source(ex) -> Path:
+    """The instructor's source of a language exercise (with its solution)."""
+    path = LANGUAGES.instructor_source(ex)
+    assert path is not None, ex.id
+    return path
 
 
 def exercise_module(exercise_id: str):

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from flowtrack_course.ports.base import VECTORS_DIR, CaseResult, ToolchainMissing
+from flowtrack_course.polyglot.base import ToolchainMissing
+from flowtrack_course.polyglot.vectors import CaseResult, dumps
 from flowtrack_course.ports.runner import DEFAULT_BUILD_DIR as BUILD_DIR
-from flowtrack_course.ports.vectors import dumps
+from flowtrack_course.ports.vectors import VECTORS_DIR
 
 __all__ = [
     "BUILD_DIR",

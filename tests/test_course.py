@@ -54,9 +54,9 @@ def test_use_course_exports_the_folder_to_what_runs_next(tmp_path, monkeypatch):
     monkeypatch.setenv(ENV, "/nonexistent")
     assert use_course(d, need=("cpp_java_matlab_ports",)) == d.resolve()
     assert os.environ[ENV] == str(d.resolve())
-    from flowtrack_course.ports import base
+    from flowtrack_course.ports import vectors
 
-    assert base.PORTS_DIR == d.resolve() / "cpp_java_matlab_ports"  # looked up when read
+    assert vectors.PORTS_DIR == d.resolve() / "cpp_java_matlab_ports"  # looked up when read
 
 
 def test_the_cli_commands_take_course(tmp_path, monkeypatch, capsys):

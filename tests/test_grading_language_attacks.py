@@ -22,18 +22,19 @@ from pathlib import Path
 import pytest
 
 from flowtrack_course.grading.engine.run import run_exercise
-from flowtrack_course.grading.languages import TOOLCHAINS, find_language_exercise, strip_solutions
-from flowtrack_course.grading.languages import toolchains as toolchains_module
+from flowtrack_course.grading.languages import TOOLCHAINS, strip_solutions
+from flowtrack_course.polyglot import toolchains as toolchains_module
+from grading_helpers import find_language_exercise, instructor_source
 from grading_sandbox import bwrap_status
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
 REPO = Path(__file__).resolve().parents[1]
 SOLUTION = {
-    "cpp": REPO / "exercises" / "cpp" / "cv_model" / "cv_model.cpp",
-    "octave": REPO / "exercises" / "octave" / "cv_model" / "cv_model.m",
-    "java": REPO / "exercises" / "java" / "cv_model" / "CvModel.java",
-    "mathics": REPO / "exercises" / "mathics" / "cv_model" / "cv_model.wl",
+    "cpp": instructor_source(find_language_exercise("cpp_cv_model")),
+    "octave": instructor_source(find_language_exercise("octave_cv_model")),
+    "java": instructor_source(find_language_exercise("java_cv_model")),
+    "mathics": instructor_source(find_language_exercise("mathics_cv_model")),
 }
 
 

@@ -18,9 +18,9 @@ import pytest
 
 from flowtrack_course.grading.engine.run import run_exercise
 from flowtrack_course.grading.engine.student import exercises_hash
-from flowtrack_course.grading.languages import TOOLCHAINS, find_language_exercise, strip_solutions
+from flowtrack_course.grading.languages import TOOLCHAINS, strip_solutions
 from flowtrack_course.grading.languages.exercises import LanguageExercise
-from grading_helpers import use_sandbox_mode
+from grading_helpers import find_language_exercise, instructor_source, use_sandbox_mode
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
@@ -30,7 +30,7 @@ REPO = Path(__file__).resolve().parents[1]
 def _grade(tmp_path: Path, ex_id: str, text: str | None = None):
     ex = find_language_exercise(ex_id)
     TOOLCHAINS[ex.language].check()  # a missing toolchain fails, it is never skipped silently
-    src = REPO / "exercises" / ex.notebook
+    src = instructor_source(ex)
     path = tmp_path / ex.id / "exercises" / ex.notebook
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(src.read_text() if text is None else text)
@@ -47,7 +47,7 @@ def test_setpriv_solution_full_marks_stub_zero(ex_id, tmp_path, monkeypatch, tmp
     assert r.isolation == "setpriv"
     assert r.score == r.max_score == 3.0, messages
     ex = find_language_exercise(ex_id)
-    stub = strip_solutions((REPO / "exercises" / ex.notebook).read_text(), ex.language)
+    stub = strip_solutions((instructor_source(ex)).read_text(), ex.language)
     r, messages = _grade(tmp_path / "stub", ex_id, stub)
     assert r.score == 0.0, messages
 
@@ -59,7 +59,7 @@ def test_setpriv_cpp_system_attack_scores_zero_and_writes_nothing(tmp_path, monk
     outside = [private / "pwned", REPO / "pwned-by-student"]
     cmd = "; ".join(f"echo ft-attack > {p}" for p in outside)
     ex = find_language_exercise("cpp_cv_model")
-    stub = strip_solutions((REPO / "exercises" / ex.notebook).read_text(), "cpp")
+    stub = strip_solutions((instructor_source(ex)).read_text(), "cpp")
     attack = stub.replace(
         '#include "exercise.hpp"\n',
         '#include "exercise.hpp"\n#include <cstdlib>\n'
@@ -85,7 +85,7 @@ def test_fallback_solution_full_marks(ex_id, tmp_path, monkeypatch, tmp_path_fac
 def test_exercises_hash_covers_the_language_files(tmp_path, monkeypatch):
     ex = find_language_exercise("cpp_kalman_step")
     names = {p.name for p in ex.source_files()}
-    assert {"driver.py", "toolchains.py", "problems.py", "harness.cpp", "kalman_step.hpp"} <= names
+    assert {"driver.py", "toolchains.py", "cpp.py", "kalman.py", "harness.cpp", "kalman_step.hpp"} <= names
     java = {p.name for p in find_language_exercise("java_cv_model").source_files()}
     assert {"Harness.java", "CvModel.java"} <= java
     octave = {p.name for p in find_language_exercise("octave_cv_model").source_files()}

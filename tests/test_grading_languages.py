@@ -20,23 +20,26 @@ import pytest
 from flowtrack_course.grading.engine.run import run_exercise
 from flowtrack_course.grading.engine.spec import Outcome
 from flowtrack_course.grading.grade import grade_class
-from flowtrack_course.grading.languages import (
-    LANGUAGE_EXERCISES,
-    PROBLEMS,
-    TOOLCHAINS,
-    find_language_exercise,
-    materialise,
-    release_languages,
-    strip_solutions,
-)
+from flowtrack_course.grading.languages import PROBLEMS, TOOLCHAINS, materialise, strip_solutions
 from flowtrack_course.grading.languages.exercises import _score_cases
-from grading_helpers import class_job, get_exercise, run_grade_with, source_notebook, student_job
+from grading_helpers import (
+    LANGUAGE_EXERCISES,
+    LANGUAGES,
+    class_job,
+    find_language_exercise,
+    get_exercise,
+    instructor_source,
+    run_grade_with,
+    source_notebook,
+    student_job,
+)
 from grading_sandbox import bwrap_status
 
 pytestmark = pytest.mark.xdist_group("sandbox")
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = REPO / "exercises"
+CATALOGUE = LANGUAGES.catalogue
 
 
 def _ex(language: str, problem: str):
@@ -118,7 +121,7 @@ def _brute_force_assignment(C: np.ndarray) -> np.ndarray:
 
 def test_assignment_reference_is_the_brute_force_optimum_and_greedy_fails_where_meant():
     p = PROBLEMS["assignment"]
-    from flowtrack_course.grading.languages.problems import _lsa_greedy
+    from flowtrack_course.polyglot.problems.association import lsa_greedy
 
     for seed in range(4):
         hidden = p.hidden(np.random.default_rng(seed))
@@ -128,12 +131,17 @@ def test_assignment_reference_is_the_brute_force_optimum_and_greedy_fails_where_
             assert C.shape[0] <= C.shape[1] <= C.shape[0] + 2
             want = _brute_force_assignment(C)
             np.testing.assert_array_equal(p.reference(inp)["assignment"], want)
-            greedy_right.append(np.array_equal(_lsa_greedy(inp)["assignment"], want))
+            greedy_right.append(np.array_equal(lsa_greedy(inp)["assignment"], want))
         # public: greedy wrong, then right; hidden: right once, wrong twice (partial credit, named)
         assert greedy_right == [False, True, True, False, False], seed
 
 
 # -- scoring: partial credit and the mistake catalogue, without a sandbox ---------------------------
+def _score(*args, **kwargs):
+    """The language grader's scoring of one call, its mistakes' messages from the course."""
+    return _score_cases(*args, catalogue=CATALOGUE, **kwargs)
+
+
 def _outcome(cases, outputs):
     return Outcome(
         True,
@@ -149,12 +157,12 @@ def test_each_catalogued_mistake_gets_partial_credit_and_is_named(problem):
     p = PROBLEMS[problem]
     cases = [{"id": f"c{i}", "input": inp} for i, inp in enumerate(p.hidden(np.random.default_rng(5)))]
     expected = [{k: np.asarray(v, float) for k, v in p.reference(c["input"]).items()} for c in cases]
-    score, msg = _score_cases(p, cases, expected, _outcome(cases, expected), show=True)
+    score, msg = _score(p, cases, expected, _outcome(cases, expected), show=True)
     assert score == 1.0 and "mistake" not in msg
     assert p.mistakes
-    for mid, _text, wrong in p.mistakes:
+    for mid, wrong in p.mistakes:
         outputs = [{**exp, **wrong(c["input"])} for c, exp in zip(cases, expected)]
-        score, msg = _score_cases(p, cases, expected, _outcome(cases, outputs), show=True)
+        score, msg = _score(p, cases, expected, _outcome(cases, outputs), show=True)
         assert 0.0 <= score < 1.0, (mid, score)
         if len(p.outputs) > 1 and set(wrong(cases[0]["input"])) != set(p.outputs):
             assert score > 0.0, mid  # the other outputs still count
@@ -165,15 +173,15 @@ def test_generic_mistakes_and_failures_are_reported():
     p = PROBLEMS["projection_jacobian"]
     cases = [{"id": "a", "input": p.public()[1]}]
     exp = [{"J": np.asarray(p.reference(cases[0]["input"])["J"])}]
-    score, msg = _score_cases(p, cases, exp, _outcome(cases, [{"J": -exp[0]["J"]}]), show=True)
+    score, msg = _score(p, cases, exp, _outcome(cases, [{"J": -exp[0]["J"]}]), show=True)
     assert score == 0.0 and "mistake generic-sign:" in msg
-    score, msg = _score_cases(p, cases, exp, _outcome(cases, [{"J": 2.5 * exp[0]["J"]}]), show=True)
+    score, msg = _score(p, cases, exp, _outcome(cases, [{"J": 2.5 * exp[0]["J"]}]), show=True)
     assert "mistake generic-scale:" in msg
-    score, msg = _score_cases(p, cases, exp, _outcome(cases, [{"J": [[1.0, 2.0]]}]), show=True)
+    score, msg = _score(p, cases, exp, _outcome(cases, [{"J": [[1.0, 2.0]]}]), show=True)
     assert score == 0.0 and "shape (1, 2)" in msg
-    score, msg = _score_cases(p, cases, exp, Outcome(False, None, "build failed: error: x"), show=True)
+    score, msg = _score(p, cases, exp, Outcome(False, None, "build failed: error: x"), show=True)
     assert score == 0.0 and "build failed" in msg
-    hidden_msg = _score_cases(p, cases, exp, _outcome(cases, [{"J": -exp[0]["J"]}]), show=False)[1]
+    hidden_msg = _score(p, cases, exp, _outcome(cases, [{"J": -exp[0]["J"]}]), show=False)[1]
     assert "case a" not in hidden_msg  # hidden tests: no per-case details
 
 
@@ -191,13 +199,13 @@ def test_every_language_exercise_has_an_instructor_source_with_markers():
     in_assignment = [ex.language for ex in LANGUAGE_EXERCISES if ex.problem == "assignment"]
     assert in_assignment == ["cpp", "octave", "java"]
     for ex in LANGUAGE_EXERCISES:
-        text = (SOURCES / ex.notebook).read_text()
+        text = instructor_source(ex).read_text()
         assert "BEGIN SOLUTION" in text and "END SOLUTION" in text, ex.notebook
-        assert (SOURCES / ex.language / "README.md").is_file()
+        assert LANGUAGES.guide(ex.language) is not None
 
 
 def test_release_writes_stubs_tests_and_readmes_at_the_same_paths(tmp_path):
-    written = release_languages(SOURCES, tmp_path)
+    written = LANGUAGES.release(SOURCES, tmp_path)
     assert sorted(written) == sorted(ex.notebook for ex in LANGUAGE_EXERCISES)
     for ex in LANGUAGE_EXERCISES:
         folder = tmp_path / ex.language / ex.problem
@@ -228,7 +236,7 @@ def test_solutions_get_full_marks(toolchain):
     problems = slow.get(toolchain, answered)
     for problem in problems:
         ex = _ex(toolchain, problem)
-        r = run_exercise(ex, SOURCES / ex.notebook, "ana")
+        r = run_exercise(ex, instructor_source(ex), "ana")
         assert r.isolation == "bwrap"
         assert r.score == r.max_score == 3.0, (ex.id, [t.message for t in r.tests], r.problems)
 
@@ -236,7 +244,7 @@ def test_solutions_get_full_marks(toolchain):
 @pytest.mark.parametrize("toolchain", ["cpp", "java", "mathics", "octave"], indirect=True)
 def test_stub_scores_zero_and_wrong_variant_gets_partial_credit_named(toolchain, tmp_path):
     ex = _ex(toolchain, "cv_model")
-    source = (SOURCES / ex.notebook).read_text()
+    source = instructor_source(ex).read_text()
     stub = _write(tmp_path / "stub", ex, strip_solutions(source, toolchain))
     r = run_exercise(ex, stub, "ana")
     assert r.score == 0.0, [t.message for t in r.tests]
@@ -263,7 +271,8 @@ def test_stub_scores_zero_and_wrong_variant_gets_partial_credit_named(toolchain,
     assert wrong != source
     r = run_exercise(ex, _write(tmp_path / "wrong", ex, wrong), "ana")
     assert r.score == pytest.approx(1.5), [t.message for t in r.tests]  # one of F, Q right
-    mistake = {"cpp": "cv-q-blockdiag", "mathics": "generic-transpose"}.get(toolchain, "cv-q-continuous")
+    mistakes = {"cpp": "q-block-diagonal", "mathics": "generic-transpose"}
+    mistake = mistakes.get(toolchain, "q-continuous-white-noise")
     assert all(f"mistake {mistake}:" in t.message for t in r.tests), [t.message for t in r.tests]
 
 
@@ -271,7 +280,7 @@ def test_stub_scores_zero_and_wrong_variant_gets_partial_credit_named(toolchain,
 def test_compile_error_is_feedback_with_the_compilers_message(toolchain, tmp_path):
     ex = _ex(toolchain, "projection_jacobian")
     old = "J(0, 0) = fx * iz;" if toolchain == "cpp" else "J[0][0] = fx * iz;"
-    bad = (SOURCES / ex.notebook).read_text().replace(old, old.replace("iz", "undeclared_thing"))
+    bad = instructor_source(ex).read_text().replace(old, old.replace("iz", "undeclared_thing"))
     assert "undeclared_thing" in bad
     r = run_exercise(ex, _write(tmp_path, ex, bad), "ana")
     assert r.score == 0.0
@@ -284,11 +293,11 @@ def test_check_and_grade_commands_cover_the_languages(toolchain, tmp_path, capsy
     from flowtrack_course.grading.check import check_notebook
 
     ex = _ex("octave", "projection_jacobian")
-    assert check_notebook(SOURCES / ex.notebook) == 0
+    assert check_notebook(instructor_source(ex)) == 0
     assert "public score: 1 / 1" in capsys.readouterr().out
     subs = tmp_path / "subs"
-    _write(subs / "ana", ex, (SOURCES / ex.notebook).read_text())
-    _write(subs / "ben", ex, strip_solutions((SOURCES / ex.notebook).read_text(), "octave"))
+    _write(subs / "ana", ex, instructor_source(ex).read_text())
+    _write(subs / "ben", ex, strip_solutions(instructor_source(ex).read_text(), "octave"))
     rows = {r["student"]: r for r in grade_class(class_job(subs, tmp_path / "out", progress=False))}
     assert rows["ana"]["exercises"][ex.id] == 3.0 and rows["ben"]["exercises"][ex.id] == 0.0
     header = (tmp_path / "out" / "grades.csv").read_text().splitlines()[0].split(",")
@@ -311,7 +320,7 @@ def test_materialise_solution_runs_the_octave_public_tests_locally(tmp_path):
     octave = shutil.which("octave-cli")
     assert octave, "octave must be installed (make test installs it)"
     ex = _ex("octave", "mahalanobis_gating")
-    materialise(ex, SOURCES / "octave" / ex.problem, tmp_path, stub=False)
+    materialise(ex, instructor_source(ex).parent, tmp_path, stub=False)
     proc = subprocess.run(
         [octave, "--norc", "run_public_tests.m"], cwd=tmp_path, capture_output=True, text=True, timeout=120
     )
@@ -325,7 +334,7 @@ def test_materialise_solution_runs_the_java_public_tests_locally(tmp_path):
 
     assert shutil.which("javac"), "a JDK must be installed (make test installs it)"
     ex = _ex("java", "projection_jacobian")
-    materialise(ex, SOURCES / "java" / ex.problem, tmp_path, stub=False)
+    materialise(ex, instructor_source(ex).parent, tmp_path, stub=False)
     proc = subprocess.run(
         ["sh", "run_public_tests.sh"], cwd=tmp_path, capture_output=True, text=True, timeout=300
     )
@@ -338,7 +347,7 @@ def test_mathics_harness_runs_the_public_tests_locally(tmp_path):
     import sys
 
     ex = _ex("mathics", "projection_jacobian")
-    materialise(ex, SOURCES / "mathics" / ex.problem, tmp_path, stub=False)
+    materialise(ex, instructor_source(ex).parent, tmp_path, stub=False)
     cmd = [sys.executable, "ft_mathics.py", "--check", ex.problem, "public.json", "projection_jacobian.wl"]
     proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -360,7 +369,7 @@ def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
     assert "mathics3" in reqs
     ex = _ex("octave", "cv_model")
     (tmp_path / "sub").mkdir()
-    (tmp_path / "sub" / "cv_model.m").write_text((SOURCES / ex.notebook).read_text())  # a flat upload
+    (tmp_path / "sub" / "cv_model.m").write_text(instructor_source(ex).read_text())  # a flat upload
     data = run_submission(tmp_path / "sub", tmp_path / "results.json", student="ana")
     mine = [t for t in data["tests"] if t["name"].startswith(ex.id)]
     assert len(mine) == 2 and all(t["status"] == "passed" for t in mine), mine
@@ -379,8 +388,8 @@ def test_language_answers_score_the_same_in_the_pool_and_fresh(toolchain, tmp_pa
     right, wrong = _ex("octave", "cv_model"), _ex("octave", "projection_jacobian")
     nb = get_exercise("ex05_cv_model")
     sub = tmp_path / "ana"
-    _write(sub, right, (SOURCES / right.notebook).read_text())
-    _write(sub, wrong, strip_solutions((SOURCES / wrong.notebook).read_text(), "octave"))
+    _write(sub, right, instructor_source(right).read_text())
+    _write(sub, wrong, strip_solutions(instructor_source(wrong).read_text(), "octave"))
     shutil.copy(source_notebook(nb), sub / nb.notebook)
     scores = {}
     for reuse in (True, False):
@@ -431,8 +440,8 @@ _GREEDY = {
 @pytest.mark.parametrize("toolchain", ["cpp", "java", "octave"], indirect=True)
 def test_assignment_solution_stub_and_greedy(toolchain, tmp_path):
     ex = _ex(toolchain, "assignment")
-    source = (SOURCES / ex.notebook).read_text()
-    r = run_exercise(ex, SOURCES / ex.notebook, "ana")
+    source = instructor_source(ex).read_text()
+    r = run_exercise(ex, instructor_source(ex), "ana")
     assert r.score == r.max_score == 3.0, ([t.message for t in r.tests], r.problems)
     stub = strip_solutions(source, toolchain)
     r = run_exercise(ex, _write(tmp_path / "stub", ex, stub), "ana")
@@ -442,4 +451,4 @@ def test_assignment_solution_stub_and_greedy(toolchain, tmp_path):
     r = run_exercise(ex, _write(tmp_path / "greedy", ex, greedy), "ana")
     # public: 1 of 2 cases (0.5 of 1 point); hidden: 1 of 3 (2/3 of 2 points)
     assert r.score == pytest.approx(0.5 + 2 / 3), [t.message for t in r.tests]
-    assert all("mistake assignment-greedy:" in t.message for t in r.tests), [t.message for t in r.tests]
+    assert all("mistake greedy-assignment:" in t.message for t in r.tests), [t.message for t in r.tests]

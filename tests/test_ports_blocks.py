@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flowtrack_course.ports import lang_blocks
-from flowtrack_course.ports.base import VECTORS_DIR
+from flowtrack_course.polyglot import blocks as lang_blocks
+from flowtrack_course.ports.vectors import VECTORS_DIR
 from ports_helpers import BUILD_DIR, assert_every_case_passes, failing_cases, perturbed_vectors, run_port
 
 pytestmark = pytest.mark.xdist_group("ports-blocks")

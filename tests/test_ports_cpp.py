@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import pytest
 
-from flowtrack_course.ports import lang_cpp
-from flowtrack_course.ports.base import VECTORS_DIR
+from flowtrack_course.polyglot import cpp as lang_cpp
+from flowtrack_course.ports.vectors import VECTORS_DIR
 from ports_helpers import (
     BUILD_DIR,
     assert_every_case_passes,
@@ -43,7 +43,7 @@ def cpp_build():
 @pytest.fixture(scope="module")
 def cpp_results(cpp_build):
     results = []
-    for language in lang_cpp.LANGUAGES:
+    for language in lang_cpp.PORTS:
         results += lang_cpp.run_harness(language, VECTORS_DIR, cpp_build)
     return results
 
@@ -57,7 +57,7 @@ def test_port_passes_every_vector_case(cpp_results, language, problem):
 
 def test_unit_tests_pass(cpp_build):
     results = lang_cpp.run_unit_tests(cpp_build)
-    assert {r.language for r in results} == set(lang_cpp.LANGUAGES)
+    assert {r.language for r in results} == set(lang_cpp.PORTS)
     failed = [f"{r.language} {r.case_id}: {r.message}" for r in results if not r.passed]
     assert not failed, "\n".join(failed)
 
@@ -66,7 +66,7 @@ def test_harnesses_report_exactly_the_perturbed_cases(cpp_build, tmp_path):
     problems = [p for probs in PROBLEMS.values() for p in probs]
     folder, spoilt = perturbed_vectors(tmp_path, problems)
     results = []
-    for language in lang_cpp.LANGUAGES:
+    for language in lang_cpp.PORTS:
         results += lang_cpp.run_harness(language, folder, cpp_build)
     assert failing_cases(results, problems) == spoilt
     assert len(results) == sum(len(vector_case_ids(p)) for p in problems)

@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flowtrack_course.ports import lang_java
-from flowtrack_course.ports.base import VECTORS_DIR, ToolchainMissing
+from flowtrack_course.polyglot import java as lang_java
+from flowtrack_course.polyglot.base import ToolchainMissing
+from flowtrack_course.ports.vectors import VECTORS_DIR
 from ports_helpers import (
     BUILD_DIR,
     assert_every_case_passes,
@@ -69,7 +70,7 @@ def test_lucas_kanade_vector_agrees_with_first_order_flow():
     """The exact projection difference stays close to J(X) v dt (independent formula) on these points."""
     from flowtrack.camera import optical_flow_from_scene_flow, project
     from flowtrack.synth import make_scene
-    from flowtrack_course.ports.vectors_extra import LK_WINDOW, select_lk_features
+    from flowtrack_course.polyglot.problems.camera import LK_WINDOW, select_lk_features
 
     scene = make_scene(n_objects=3, n_frames=2, image_size=(240, 320), dt=0.1, noise=0.0, seed=0)
     f0, f1 = scene.frames

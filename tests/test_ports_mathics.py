@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
 
-from flowtrack_course.ports import lang_mathics
-from flowtrack_course.ports.base import VECTORS_DIR
-from flowtrack_course.ports.vectors_extra import scalar_riccati_P, steady_state_scalar
+from flowtrack_course.polyglot import mathics as lang_mathics
+from flowtrack_course.polyglot.problems.kalman import STEADY_STATE_SCALAR, scalar_riccati_P
+from flowtrack_course.ports.vectors import VECTORS_DIR
 from ports_helpers import (
     BUILD_DIR,
     assert_every_case_passes,
@@ -59,7 +59,7 @@ def test_harness_reports_exactly_the_perturbed_cases(mathics_results, tmp_path):
 
 
 def test_steady_state_vector_matches_scipy_dare_and_iteration():
-    for case in steady_state_scalar()["cases"]:
+    for case in STEADY_STATE_SCALAR.vectors()["cases"]:
         inp, exp = case["input"], case["expected"]
         f, h, q, r = inp["f"], inp["h"], inp["q"], inp["r"]
         P_dare = solve_discrete_are(np.array([[f]]), np.array([[h]]), np.array([[q]]), np.array([[r]]))[0, 0]

@@ -5,10 +5,13 @@ A missing ``octave`` fails these tests with the Debian package to install (never
 
 from __future__ import annotations
 
+import shutil
+
 import pytest
 
-from flowtrack_course.ports import lang_octave
-from flowtrack_course.ports.base import VECTORS_DIR, ToolchainMissing
+from flowtrack_course.polyglot import octave as lang_octave
+from flowtrack_course.polyglot.base import ToolchainMissing
+from flowtrack_course.ports.vectors import VECTORS_DIR
 from ports_helpers import (
     BUILD_DIR,
     assert_every_case_passes,
@@ -47,6 +50,6 @@ def test_missing_vector_file_fails(octave_results, tmp_path):
 
 
 def test_missing_octave_is_reported_not_skipped(monkeypatch, tmp_path):
-    monkeypatch.setattr(lang_octave.shutil, "which", lambda name: None)
+    monkeypatch.setattr(shutil, "which", lambda name: None)
     with pytest.raises(ToolchainMissing, match="octave"):
         lang_octave.run(VECTORS_DIR, tmp_path)

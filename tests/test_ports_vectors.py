@@ -20,10 +20,12 @@ from filterpy.kalman import KalmanFilter as FilterpyKF
 from scipy.optimize import linear_sum_assignment
 
 from flowtrack_course.cli import main
+from flowtrack_course.polyglot.base import ToolchainMissing
+from flowtrack_course.polyglot.vectors import CaseResult
 from flowtrack_course.ports import runner
-from flowtrack_course.ports.base import VECTORS_DIR, CaseResult, ToolchainMissing
 from flowtrack_course.ports.vectors import (
     REGENERATION_RTOL,
+    VECTORS_DIR,
     dumps,
     problem_names,
     vector_differences,
@@ -336,7 +338,7 @@ def test_perturbed_vectors_spoil_one_case_per_problem_beyond_tolerance(tmp_path)
 # ----------------------------------------------------------------------------------------------------
 def _fake_module(monkeypatch, name, run):
     mod = types.ModuleType(name)
-    mod.LANGUAGES = ("fake-a", "fake-b")
+    mod.PORTS = ("fake-a", "fake-b")
     mod.run = run
     monkeypatch.setitem(sys.modules, name, mod)
     monkeypatch.setitem(runner.LANG_MODULES, "cpp", name)

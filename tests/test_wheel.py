@@ -89,6 +89,12 @@ def test_release_from_another_folder_with_course(installed, tmp_path):
         p.name for p in (ROOT / "exercises").glob("*/*.ipynb"))
     n_lessons = len(list((ROOT / "lessons").glob("[0-9]*.md")))
     assert len(list((tmp_path / "bundle" / "lessons").glob("*.ipynb"))) == n_lessons
+    # the other languages' harness files are the wheel's package data (the polyglot stack's files/)
+    lang = tmp_path / "bundle" / "exercises"
+    for rel in ("cpp/cv_model/harness.cpp", "cpp/cv_model/exercise.hpp", "java/cv_model/Harness.java",
+                "java/cv_model/api/KalmanStep.java", "octave/cv_model/ft_harness.m",
+                "mathics/cv_model/ft_mathics.py", "octave/cv_model/public.json"):
+        assert (lang / rel).is_file(), rel
     # without --course (and no $FLOWTRACK_COURSE) the current folder is the course: a clear error
     proc = subprocess.run([venv / "bin" / "flowtrack", "release", "--out", tmp_path / "b2"],
                           cwd=elsewhere, env=env, capture_output=True, text=True)

@@ -181,3 +181,16 @@ EXERCISE = Exercise(
     packages=("flowtrack",),
     mistakes=MISTAKES,
 )
+
+
+# The same exercise answered in C++, Java, Octave and Mathematica: the problem of other languages
+# (flowtrack_course.polyglot.problems) and the mistakes only those answers show (there the function
+# takes the intrinsics as arguments, so the focal lengths can be left out altogether).
+LANGUAGE_PROBLEM = "projection_jacobian"
+LANGUAGE_MISTAKES = (
+    Mistake(
+        "jacobian-no-focal",
+        "the focal lengths are missing: u = fx X/Z + cx and v = fy Y/Z + cy, so row 0 of the Jacobian "
+        f"carries fx and row 1 fy; see {_L1} §1-2",
+    ),
+)

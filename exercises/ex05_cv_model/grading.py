@@ -132,3 +132,8 @@ EXERCISE = Exercise(
     packages=("flowtrack",),
     mistakes=MISTAKES,
 )
+
+
+# The same exercise answered in C++, Java, Octave and Mathematica (the problem of other languages,
+# flowtrack_course.polyglot.problems): their mistakes are this exercise's.
+LANGUAGE_PROBLEM = "cv_model"

@@ -149,3 +149,21 @@ EXERCISE = Exercise(
     packages=("flowtrack",),
     mistakes=MISTAKES,
 )
+
+
+# The same exercise answered in C++, Java, Octave and Mathematica: the problem of other languages
+# (flowtrack_course.polyglot.problems) and the mistakes only those answers show (there one function
+# does a whole predict/update step).
+LANGUAGE_PROBLEM = "kalman_step"
+LANGUAGE_MISTAKES = (
+    Mistake(
+        "kalman-no-predict",
+        "the update starts from x and P as they were: a step first predicts them (x = F x, "
+        f"P = F P F^T + Q), then updates the prediction with z; see {_L4} §2 and §4",
+    ),
+    Mistake(
+        "kalman-prior-cov",
+        "P is the predicted covariance F P F^T + Q: the update must shrink it, P = (I - K H) P "
+        f"(the measurement adds information); see {_L4} §4",
+    ),
+)

@@ -187,3 +187,8 @@ EXERCISE = Exercise(
         Dependency("test_gating", on="test_cost", function="mahalanobis_cost", builds="gated_cost"),
     ),
 )
+
+
+# The same exercise answered in C++, Java, Octave and Mathematica (the problem of other languages,
+# flowtrack_course.polyglot.problems): their mistakes are this exercise's.
+LANGUAGE_PROBLEM = "mahalanobis_gating"

@@ -212,3 +212,8 @@ EXERCISE = Exercise(
     packages=("flowtrack",),
     mistakes=MISTAKES,
 )
+
+
+# The same exercise answered in C++, Java and Octave (the problem of other languages,
+# flowtrack_course.polyglot.problems): their mistakes are this exercise's.
+LANGUAGE_PROBLEM = "assignment"

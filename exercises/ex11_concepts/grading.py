@@ -4,9 +4,9 @@ Six items, each answered by a function in its own answer cell:
 
 1. ``q_order()``: Q for the state order [px, vx, py, vy], a sympy matrix in ``dt`` and ``q`` given as
    text; graded by sympy equivalence: the sandboxed child parses the text (an :mod:`ast` whitelist,
-   never ``eval``/``sympify``) and evaluates it at random points (:mod:`flowtrack_course.grading._formula`);
+   never ``eval``/``sympify``) and evaluates it at random points (:mod:`grading_sandbox.formula`);
    the grader compares those numbers with its own expressions' values
-   (:mod:`~flowtrack_course.grading.exercises.symbolic_answers`) and never parses student text.
+   (:mod:`~flowtrack_course.grading.engine.symbolic`) and never parses student text.
 2. ``euler_lagrange()``: the left side of the Euler-Lagrange equation of the energy of Problem 2, in
    ``a, b, v, dt, lam`` and ``Lv`` (the Laplacian of v), up to a nonzero constant factor.
 3. ``inverse_depth_jacobian()``: the Jacobian of the inverse-depth projection (f X/Z, f Y/Z, 1/Z).
@@ -206,7 +206,7 @@ def symbolic_check(
 ) -> Check:
     """The answer (a formula the sandbox evaluated at ``points``) equals ``expected`` there (or is a
     nonzero constant multiple of it, ``up_to_scale``). The grader never parses the answer's text
-    (:mod:`~flowtrack_course.grading.exercises.symbolic_answers`)."""
+    (:mod:`~flowtrack_course.grading.engine.symbolic`)."""
     import sympy as sp
 
     want = expected_values(expected, names, points)

@@ -9,61 +9,28 @@ above the file it checks (:func:`course_near`).
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
 from pathlib import Path
 
 from ..course import ENV, CourseNotFound, course_root
 from .engine.catalog import Catalog
 from .engine.discovery import EXERCISES_DIR, discover
-from .engine.spec import Exercise
-from .languages import (
-    LANGUAGE_EXERCISES,
-    answered_exercises,
-    find_language_exercise,
-    release_languages,
-    submitted_exercises,
-)
+from .languages import LanguageSource
 
 __all__ = ["LanguageSource", "course_catalog", "course_near"]
 
 
-class LanguageSource:
-    """The answers in C++, Java, Octave and Mathematica as a source of exercises: each (problem,
-    language) is graded when a student submitted its file (:mod:`.languages`)."""
-
-    def exercises(self) -> Sequence[Exercise]:
-        return LANGUAGE_EXERCISES
-
-    def find(self, key: str | Path) -> Exercise | None:
-        return find_language_exercise(key)
-
-    def answered(self, student_dir: Path) -> Sequence[Exercise]:
-        return answered_exercises(student_dir)
-
-    def submitted(self, submissions: Path) -> Sequence[Exercise]:
-        return submitted_exercises(submissions)
-
-    def release(self, source: Path, dest: Path) -> list[str]:
-        """Write the stubs of the language exercises found under ``source`` into ``dest``."""
-        return release_languages(source, dest)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, LanguageSource)
-
-    def __hash__(self) -> int:
-        return hash(LanguageSource)
-
-
 def course_catalog(course: str | os.PathLike | None = None) -> Catalog:
     """The catalog of the course folder ``course`` (else ``$FLOWTRACK_COURSE``, else the current
-    folder): its discovered exercises and the answers in other languages.
+    folder): its discovered exercises and their answers in other languages
+    (:class:`~.languages.LanguageSource`).
 
     Raises
     ------
     CourseNotFound
         The folder has no ``exercises/``.
     """
-    return Catalog(discover(course_root(course, need=(EXERCISES_DIR,))), (LanguageSource(),))
+    found = discover(course_root(course, need=(EXERCISES_DIR,)))
+    return Catalog(found, (LanguageSource(found),))
 
 
 def course_near(path: str | os.PathLike, course: str | os.PathLike | None = None) -> Catalog:

@@ -1,6 +1,7 @@
-"""Cross-language ports checked against shared test vectors made by the reference.
+"""``flowtrack ports``: the course's C++/Java/MATLAB/Mathematica/block-diagram ports and their vectors.
 
-``vectors`` writes ``cpp_java_matlab_ports/vectors/<problem>.json``; each ``lang_*`` module builds
-and runs one language's harness on those files; ``runner`` prints the table and is the
-``flowtrack ports`` command.
+``vectors`` writes and checks ``cpp_java_matlab_ports/vectors/<problem>.json`` (the problems and
+their cases are defined in :mod:`flowtrack_course.polyglot.problems`); ``runner`` builds and runs
+every language's ports (:mod:`flowtrack_course.polyglot`) on those files, prints the table and is
+the ``flowtrack ports`` command.
 """

@@ -1,9 +1,10 @@
 """``flowtrack ports``: build and run every port on the shared vectors and print one table.
 
-Each language module (:data:`LANG_MODULES`) exposes ``LANGUAGES`` (the port names it reports, e.g.
-``("cpp-eigen", "cpp-pcl")``) and ``run(vectors_dir, build_dir) -> list[CaseResult]``. The command
-fails (exit 1) on any failed case, on a missing toolchain (never a silent skip), on a build or
-harness error and on a port that reports no case at all.
+Each language of :data:`flowtrack_course.polyglot.toolchains.LANGUAGES` has a module
+(:data:`LANG_MODULES`) that exposes ``PORTS`` (the port names it reports, e.g. ``("cpp-eigen",
+"cpp-pcl")``) and ``run(vectors_dir, build_dir) -> list[CaseResult]``. The command fails (exit 1) on
+any failed case, on a missing toolchain (never a silent skip), on a build or harness error and on a
+port that reports no case at all.
 """
 
 from __future__ import annotations
@@ -16,19 +17,14 @@ from pathlib import Path
 
 from ..course import add_course_option, ports_dir, use_course
 from ..course import vectors_dir as _course_vectors
-from .base import CaseResult, ToolchainMissing, failure
+from ..polyglot.base import ToolchainMissing
+from ..polyglot.toolchains import LANGUAGES
+from ..polyglot.vectors import CaseResult, failure
 
 __all__ = ["LANG_MODULES", "format_table", "register", "run_ports"]
 
-#: ``--lang`` value -> module implementing that language family's ports.
-LANG_MODULES: dict[str, str] = {
-    "cpp": "flowtrack_course.ports.lang_cpp",
-    "java": "flowtrack_course.ports.lang_java",
-    "octave": "flowtrack_course.ports.lang_octave",
-    "mathics": "flowtrack_course.ports.lang_mathics",
-    "blocks": "flowtrack_course.ports.lang_blocks",
-}
-
+#: ``--lang`` value -> module implementing that language family's ports (imported when run).
+LANG_MODULES: dict[str, str] = {lang: f"flowtrack_course.polyglot.{lang}" for lang in LANGUAGES}
 
 
 def __getattr__(name: str) -> Path:
@@ -88,7 +84,7 @@ def run_ports(
         except ImportError as exc:
             results.append(failure(name, "error", f"cannot import {LANG_MODULES[name]}: {exc}"))
             continue
-        languages: Sequence[str] = getattr(module, "LANGUAGES", (name,))
+        languages: Sequence[str] = getattr(module, "PORTS", (name,))
         try:
             got = list(module.run(vectors_dir, build_dir))
         except ToolchainMissing as exc:

@@ -1,7 +1,7 @@
 """The driver the sandboxed child executes for an answer in another language (trusted code, run inside).
 
 :func:`driver_cell` returns the Python source of the one "cell" a language exercise hands to
-:class:`flowtrack_course.grading.sandbox.Sandbox`. The source carries the student's file and the
+:class:`grading_sandbox.Sandbox`. The source carries the student's file and the
 grader's own harness files as data; executing it only defines ``run_cases``. On the first call it
 writes the files into the sandbox's home directory, runs the build commands (each under the
 compile time limit; a failed build raises ``RuntimeError`` holding the compiler's message, so the

@@ -1,23 +1,36 @@
 """Language exercises: one :class:`LanguageExercise` per (problem, language), graded like the notebooks.
 
-A language exercise is an :class:`~flowtrack_course.grading.spec.Exercise` whose "notebook" is the student's
-source file ``<lang>/<problem>/<problem>.<ext>`` (relative to ``exercises/``; in a submission,
-``SUBMISSIONS/<student>/exercises/<lang>/<problem>/...``) and whose one answer "cell" is the
-driver (:mod:`flowtrack_course.grading.languages.driver`) carrying that file. ``run_exercise`` asks it for
-its cells with :meth:`LanguageExercise.extract_cells`; everything else (sandbox, seeds, scoring,
-feedback, ``results.json``, ``grades.csv``) is the notebooks' machinery.
+A language exercise is an :class:`~flowtrack_course.grading.engine.spec.Exercise` whose "notebook" is
+the student's source file ``<lang>/<problem>/<file>`` (relative to the bundle's ``exercises/``; in a
+submission, ``SUBMISSIONS/<student>/exercises/<lang>/<problem>/...``) and whose one answer "cell" is
+the driver (:mod:`flowtrack_course.grading.languages.driver`) carrying that file. The engine asks it
+for its cells (:meth:`LanguageExercise.extract_cells`), whether it starts programs
+(:attr:`~LanguageExercise.spawns`) and which files its grading depends on
+(:meth:`~LanguageExercise.source_files`); everything else (sandbox, seeds, scoring, feedback,
+``results.json``, ``grades.csv``) is the notebooks' machinery.
+
+Which language exercises a course has is discovered like its notebooks: an exercise folder's grading
+module that sets ``LANGUAGE_PROBLEM`` (a problem of :mod:`flowtrack_course.polyglot.problems`) is
+answered in every language that problem is set in, and its ``LANGUAGE_MISTAKES`` are the mistakes
+only those answers show, with their messages (:func:`language_exercises`). The problems, their
+cases and the wrong answers that recognise their mistakes are the polyglot stack's (the ports'
+vectors come from the same definitions); how each language is built and run is its
+:mod:`flowtrack_course.polyglot` toolchain.
 
 Tests: a public test on the problem's fixed inputs (1 point) and a hidden test on inputs drawn from
 the student's keyed seed (2 points). Each is one call of the driver's ``run_cases`` with the cases
 in the shared vectors format (inputs only). The scorer compares every output with the Python
 reference's under the problem's tolerances (``|got - exp| <= atol + rtol |exp|``): the fraction of
-the points is the mean over cases of the share of correct outputs. An output that matches one of
-the problem's catalogued mistakes, or a generic one (``generic-sign``, ``generic-transpose``,
-``generic-scale``), adds a ``mistake <id>: <message>`` line to the message.
+the points is the mean over cases of the share of correct outputs. A wrong output is explained by
+the engine's one mistake matcher (:func:`~flowtrack_course.grading.engine.mistakes.diagnose`): one
+of the problem's catalogued mistakes, or a generic one the problem allows (``generic-sign``,
+``generic-transpose``, ``generic-scale``); each adds the course catalogue's line
+``mistake <id>: <message>`` (the same id and message as in the notebooks) to the message.
 """
 
 from __future__ import annotations
 
+import inspect
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -25,23 +38,31 @@ from pathlib import Path
 
 import numpy as np
 
+from ... import polyglot
+from ...polyglot.problems import GRADED_PROBLEMS, Problem
+from ...polyglot.toolchains import GRADED_LANGUAGES, TOOLCHAINS, Toolchain
+from ...polyglot.vectors import dumps
+from ..engine.discovery import ExerciseSet
+from ..engine.mistakes import Catalogue, Mistake, Variant, diagnose
 from ..engine.spec import Call, Exercise, GradedTest, Outcome, as_float_array
 from .driver import driver_cell
-from .problems import PROBLEMS, Problem
-from .toolchains import TOOLCHAINS, Toolchain, support_text
 
 __all__ = [
     "BLOCKED",
-    "answered_exercises",
-    "LANGUAGE_EXERCISES",
+    "LANGUAGE_MISTAKES",
+    "LANGUAGE_PROBLEM",
     "LanguageExercise",
-    "find_language_exercise",
+    "language_catalogue",
+    "language_exercises",
     "materialise",
     "public_vectors",
-    "release_languages",
     "strip_solutions",
-    "submitted_exercises",
 ]
+
+#: The name of a grading module's polyglot problem (the exercise answered in other languages).
+LANGUAGE_PROBLEM = "LANGUAGE_PROBLEM"
+#: The name of a grading module's mistakes only the answers in other languages show.
+LANGUAGE_MISTAKES = "LANGUAGE_MISTAKES"
 
 #: Modules the sandboxed child (and so anything the student's program starts) cannot load: the
 #: reference that computes the expected values, and solvers that would do the work.
@@ -50,13 +71,14 @@ BLOCKED = (
     "flowtrack.camera",
     "flowtrack.association",
     "flowtrack.tracking",
+    "flowtrack_course.polyglot",
     "flowtrack_course.ports",
     "flowtrack.symbolic",
     "scipy.optimize",
 )
 
 #: What a Mathematica answer's sandbox holds besides the standard library: Mathics3 and what it needs,
-#: nothing else (no flowtrack at all). Its zygote (:class:`~flowtrack_course.grading.sandbox.SandboxPool`)
+#: nothing else (no flowtrack at all). Its zygote (:class:`grading_sandbox.SandboxPool`)
 #: imports these before forking a child per exercise: ``mathics.__main__`` loads the builtins and
 #: ``mathics.profile_mathics`` builds one pristine set of definitions, so that a child starts the
 #: interpreter in milliseconds instead of seconds (the harness falls back to building its own).
@@ -71,33 +93,53 @@ MAX_SOURCE_BYTES = 256 * 1024
 
 @dataclass(frozen=True)
 class LanguageExercise(Exercise):
-    """An :class:`Exercise` answered in ``language`` (a key of :data:`TOOLCHAINS`) for ``problem``."""
+    """An :class:`Exercise` answered in ``language`` (a key of :data:`TOOLCHAINS`) for ``problem``;
+    ``exercise`` is the id of the course's exercise (its folder) it is a form of."""
 
     language: str = ""
     problem: str = ""
+    exercise: str = ""
 
     @property
     def toolchain(self) -> Toolchain:
         return TOOLCHAINS[self.language]
 
     @property
+    def source_name(self) -> str:
+        """The file the student writes (``cv_model.cpp``, ``CvModel.java``, ...)."""
+        return self.toolchain.source_name(self.problem)
+
+    @property
     def spawns(self) -> bool:
         """The driver starts compilers and programs (every language but Mathics3, run in-process):
-        ``run_exercise`` then lets the sandbox's child start processes (``Sandbox(spawn=True)``)."""
+        the engine then lets the sandbox's child start processes (``Sandbox(spawn=True)``)."""
         return self.toolchain.inproc(self.problem) is None
 
     def source_files(self) -> list[Path]:
-        """The grader's files this item's grading depends on beyond its tests' module: the driver, the
-        toolchains and problems modules and the language's harness files (``exercises_hash`` hashes
-        them, so a change of any of them re-grades finished students)."""
+        """The grader's files this item's grading depends on beyond its tests' module: the driver,
+        the scoring, the polyglot stack's modules that build and run the language and define the
+        problem, and the language's harness files (``exercises_hash`` hashes them, so a change of any
+        of them re-grades finished students)."""
         here = Path(__file__).resolve().parent
-        files = [here / "driver.py", here / "toolchains.py", here / "problems.py", here / "exercises.py"]
-        files += sorted(p for p in (here / "files" / self.language).rglob("*") if p.is_file())
+        stack = Path(polyglot.__file__).resolve().parent
+        problem = Path(inspect.getsourcefile(GRADED_PROBLEMS[self.problem].reference)).resolve()
+        files = [here / "driver.py", here / "exercises.py"]
+        files += [stack / f for f in ("base.py", "vectors.py", "toolchains.py", f"{self.language}.py")]
+        files += [stack / "problems" / "base.py", problem]
+        files += sorted(p for p in (stack / "files" / self.language).rglob("*") if p.is_file())
         return files
+
+    def harness_blobs(self) -> dict[str, bytes]:
+        """The harness artefacts built from the grader's own sources (the C++ object, the Java class),
+        cached in the sandbox's cache (:func:`grading_sandbox.cache.cache_root`), which every
+        student's sandbox reads."""
+        from grading_sandbox.cache import cache_root
+
+        return self.toolchain.blobs(self.problem, cache_root() / "languages" / self.language)
 
     def extract_cells(self, path: Path) -> tuple[list[tuple[str, str]], list[str]]:
         """The driver cell carrying the student's file ``path``, or ``([], [why])``."""
-        name = self.toolchain.source_name(self.problem)
+        name = self.source_name
         if not path.is_file():
             return [], [f"file not submitted: {self.language}/{self.problem}/{name}"]
         data = path.read_bytes()
@@ -109,7 +151,7 @@ class LanguageExercise(Exercise):
             return [], [f"{name} is not UTF-8 text"]
         tc = self.toolchain
         try:
-            blobs = tc.blobs(self.problem)
+            blobs = self.harness_blobs()
         except Exception as exc:  # a missing toolchain is the grading machine's problem: say so
             return [], [f"cannot grade {tc.title} here: {exc}"]
         cell = driver_cell(
@@ -132,31 +174,28 @@ def _matches(got: np.ndarray, want: np.ndarray, rtol: float, atol: float) -> boo
     return got.shape == want.shape and bool(np.all(np.abs(got - want) <= atol + rtol * np.abs(want)))
 
 
-def _generic_mistake(got: np.ndarray, exp: np.ndarray, rtol: float, atol: float) -> str | None:
-    if not np.any(np.abs(exp) > atol):
-        return None
-    if _matches(got, -exp, rtol, atol):
-        return "generic-sign"
-    if exp.ndim == 2 and exp.shape[0] == exp.shape[1] and _matches(got, exp.T, rtol, atol):
-        return "generic-transpose"
-    big = np.abs(exp) > atol
-    ratio = got[big] / exp[big]
-    if ratio.size and np.all(np.isfinite(ratio)) and abs(ratio[0] - 1) > 1e-6 and ratio[0] != 0:
-        if _matches(got, ratio[0] * exp, rtol, atol):
-            return "generic-scale"
-    return None
-
-
-_GENERIC = {
-    "generic-sign": "the result has the opposite sign",
-    "generic-transpose": "the result is the transpose of the expected matrix",
-    "generic-scale": "the result is off by a constant factor",
-}
+def _mistake(problem: Problem, case: dict, name: str, got: np.ndarray, want: np.ndarray) -> str | None:
+    """The catalogued mistake (or allowed generic one) that explains output ``name`` of one case."""
+    variants = []
+    for mid, wrong in problem.mistakes:
+        try:
+            alt = wrong(case["input"]).get(name)
+        except Exception:  # a mistaken formula may not apply to these inputs
+            alt = None
+        if alt is not None:
+            variants.append(Variant(mid, np.asarray(alt, dtype=float)))
+    found = [m for m in diagnose(got, want, variants, problem.rtol, problem.atol)
+             if not m.startswith("generic-") or m in problem.generic]
+    return found[0] if found else None
 
 
 def _score_cases(
-    problem: Problem, cases: list[dict], expected: list[dict], outcome: Outcome, show: bool
+    problem: Problem, cases: list[dict], expected: list[dict], outcome: Outcome, show: bool,
+    *, catalogue: Catalogue,
 ) -> tuple[float, str]:
+    """The fraction of the points and the message of one call: the mean over cases of the share of
+    right outputs; the message names the failing cases (``show``: a public test) and adds the line
+    of each mistake recognised (its message from ``catalogue``)."""
     if not outcome.ok:
         return 0.0, outcome.error or "the program failed"
     value = outcome.value if isinstance(outcome.value, dict) else {}
@@ -189,20 +228,9 @@ def _score_cases(
                 continue
             worst = float(np.max(np.abs(got - want)))
             notes.append(f"case {case['id']}: {name} differs (largest error {worst:.3g})")
-            found = None
-            for mid, msg, wrong in problem.mistakes:
-                try:
-                    alt = wrong(case["input"]).get(name)
-                except Exception:  # a mistaken formula may not apply to these inputs
-                    alt = None
-                if alt is not None and _matches(got, np.asarray(alt, float), problem.rtol, problem.atol):
-                    found = (mid, msg)
-                    break
-            if found is None:
-                gid = _generic_mistake(got, want, problem.rtol, problem.atol)
-                found = (gid, f"{name}: {_GENERIC[gid]}") if gid else None
-            if found:
-                mistakes.setdefault(found[0], found[1])
+            found = _mistake(problem, case, name, got, want)
+            if found and found in catalogue:
+                mistakes.setdefault(found, catalogue.line(found))
         fractions.append(good / max(1, len(exp)))
     score = float(np.mean(fractions)) if fractions else 0.0
     n_ok = sum(f >= 1.0 for f in fractions)
@@ -211,89 +239,127 @@ def _score_cases(
     lines = [f"{n_ok}/{len(cases)} cases correct"]
     if show:
         lines += notes[:6] + (["..."] if len(notes) > 6 else [])
-    lines += [f"mistake {mid}: {msg}" for mid, msg in mistakes.items()]
+    lines += list(mistakes.values())
     return score, "\n".join(lines)
 
 
-def _test(problem: Problem, hidden: bool) -> GradedTest:
+def _test(problem: Problem, hidden: bool, catalogue: Catalogue, timeout: float) -> GradedTest:
     def build(rng: np.random.Generator):
-        inputs = problem.hidden(rng) if hidden else problem.public()
-        cases = [
-            {"id": f"{'hidden' if hidden else 'public'}-{i}", "input": inp} for i, inp in enumerate(inputs)
-        ]
+        chosen = problem.hidden_cases(rng) if hidden else problem.public_cases()
+        doc = problem.document(chosen, expected=False)
+        cases = doc["cases"]
         expected = [
             {k: np.asarray(v, float) for k, v in problem.reference(c["input"]).items()} for c in cases
         ]
-        doc = {"problem": problem.name, "cases": cases}
 
         def scorer(outcomes: Sequence[Outcome]) -> tuple[float, str]:
             if len(outcomes) != 1:
                 return 0.0, "no result from the sandbox"
-            return _score_cases(problem, cases, expected, outcomes[0], show=not hidden)
+            return _score_cases(problem, cases, expected, outcomes[0], show=not hidden, catalogue=catalogue)
 
         return [Call("run_cases", (doc,))], scorer
 
-    build.__wrapped__ = problem.reference  # grade.exercises_hash hashes the module defining the problem
+    build.__wrapped__ = problem.reference  # exercises_hash hashes the module defining the problem
     name = f"{'hidden' if hidden else 'public'}: {problem.title}"
     return GradedTest(
-        name, f"test_{problem.name}", HIDDEN_POINTS if hidden else PUBLIC_POINTS, hidden, build, timeout=0.0
+        name, f"test_{problem.name}", HIDDEN_POINTS if hidden else PUBLIC_POINTS, hidden, build, timeout
     )
 
 
-def _exercise(language: str, problem: Problem) -> LanguageExercise:
+def _exercise(language: str, problem: Problem, owner: str, catalogue: Catalogue) -> LanguageExercise:
     tc = TOOLCHAINS[language]
     timeout = tc.compile_seconds + tc.run_seconds + 30.0  # the wall-clock limit of one test's batch
-    tests = tuple(
-        GradedTest(t.name, t.grade_id, t.points, t.hidden, t.build, timeout)
-        for t in (_test(problem, False), _test(problem, True))
-    )
     return LanguageExercise(
         id=f"{language}_{problem.name}",
         title=f"{problem.title} ({tc.title})",
         notebook=f"{language}/{problem.name}/{tc.source_name(problem.name)}",
         answer_cells=(tc.source_name(problem.name),),
         blocked=tuple(b for b in BLOCKED if b != "scipy.optimize") if language == "mathics" else BLOCKED,
-        allowed=MATHICS_ALLOWED if language == "mathics" else None,
+        allowed=MATHICS_ALLOWED if language == "mathics" else (),
         packages=("flowtrack",),
-        tests=tests,
+        tests=(_test(problem, False, catalogue, timeout), _test(problem, True, catalogue, timeout)),
+        mistakes=tuple(catalogue[mid] for mid, _ in problem.mistakes),
+        catalogue=catalogue,
         language=language,
         problem=problem.name,
+        exercise=owner,
     )
 
 
-LANGUAGE_EXERCISES: tuple[LanguageExercise, ...] = tuple(
-    _exercise(lang, p) for lang in TOOLCHAINS for p in PROBLEMS.values()
-    if p.languages is None or lang in p.languages
-)
+def _declared(course: ExerciseSet) -> dict[str, tuple[str, tuple[Mistake, ...]]]:
+    """``{problem: (exercise id, its language-only mistakes)}`` of the course's grading modules."""
+    out: dict[str, tuple[str, tuple[Mistake, ...]]] = {}
+    for ex in course:
+        module = course.module(ex.id)
+        name = module.__dict__.get(LANGUAGE_PROBLEM)
+        own = tuple(m.of(ex.id) for m in module.__dict__.get(LANGUAGE_MISTAKES, ()))
+        if name is None:
+            if own:
+                raise ValueError(f"{ex.id}: {LANGUAGE_MISTAKES} without a {LANGUAGE_PROBLEM}")
+            continue
+        if name not in GRADED_PROBLEMS:
+            known = ", ".join(GRADED_PROBLEMS)
+            raise ValueError(
+                f"{ex.id}: {LANGUAGE_PROBLEM} = {name!r} is no problem of other languages ({known})"
+            )
+        if name in out:
+            raise ValueError(f"{ex.id}: the problem {name!r} is already {out[name][0]}'s")
+        out[name] = (ex.id, own)
+    return out
 
 
-def find_language_exercise(key: str | Path) -> LanguageExercise | None:
-    """The language exercise with id ``key`` or whose source file is named like ``key`` (a path or a
-    name; the file names are unique: ``cv_model.cpp``, ``CvModel.java``, ``cv_model.m``, ...).
+def language_catalogue(course: ExerciseSet) -> Catalogue:
+    """The mistakes the answers in other languages of ``course`` may name: the course's catalogue and
+    the language-only mistakes its grading modules define (``LANGUAGE_MISTAKES``).
+
+    Raises
+    ------
+    ValueError
+        A declared problem names a mistake the course defines nowhere (its line would have no
+        message), or a grading module's declaration is wrong.
+    """
+    declared = _declared(course)
+    catalogue = Catalogue([*course.catalogue.values(), *(m for _, own in declared.values() for m in own)])
+    for name, (owner, _own) in declared.items():
+        missing = [mid for mid, _ in GRADED_PROBLEMS[name].mistakes if mid not in catalogue]
+        if missing:
+            raise ValueError(
+                f"{owner}: the answers in other languages to {name!r} recognise {', '.join(missing)}, "
+                f"which no exercise of the course defines (add them to its {LANGUAGE_MISTAKES})"
+            )
+    return catalogue
+
+
+def language_exercises(course: ExerciseSet) -> tuple[LanguageExercise, ...]:
+    """The course's language exercises: one per graded language and problem a grading module
+    declares (``LANGUAGE_PROBLEM``), in the languages the problem is set in, ordered by language
+    (:data:`~flowtrack_course.polyglot.toolchains.GRADED_LANGUAGES`) then problem (the
+    ``grades.csv`` columns); their mistakes' messages are :func:`language_catalogue`'s.
 
     Examples
     --------
-    >>> find_language_exercise("somewhere/KalmanStep.java").id, find_language_exercise("ex05_cv_model")
-    ('java_kalman_step', None)
+    >>> from pathlib import Path
+    >>> from flowtrack_course.grading.engine.discovery import discover
+    >>> empty = Path(__import__("tempfile").mkdtemp()); (empty / "exercises").mkdir()
+    >>> language_exercises(discover(empty))
+    ()
     """
-    key = str(key)
-    name = Path(key).name
-    for ex in LANGUAGE_EXERCISES:
-        if key == ex.id or name == Path(ex.notebook).name:
-            return ex
-    return None
+    declared = _declared(course)
+    if not declared:
+        return ()
+    catalogue = language_catalogue(course)
+    return tuple(
+        _exercise(lang, p, declared[p.name][0], catalogue)
+        for lang in GRADED_LANGUAGES
+        for p in GRADED_PROBLEMS.values()
+        if p.name in declared and (p.languages is None or lang in p.languages)
+    )
 
 
 # -- files of the bundle ---------------------------------------------------------------------------
 _BLOCK = re.compile(
     r"^([ \t]*)(?://|%|\(\*)\s*BEGIN SOLUTION.*?^[ \t]*(?://|%|\(\*)\s*END SOLUTION[^\n]*\n", re.M | re.S
 )
-_TODO = {
-    "cpp": "// YOUR CODE HERE",
-    "java": "// YOUR CODE HERE",
-    "octave": "% YOUR CODE HERE",
-    "mathics": "(* YOUR CODE HERE *)",
-}
 
 
 def strip_solutions(text: str, language: str) -> str:
@@ -307,7 +373,8 @@ def strip_solutions(text: str, language: str) -> str:
       % YOUR CODE HERE
     end
     """
-    out = _BLOCK.sub(lambda m: f"{m.group(1)}{_TODO[language]}\n", text)
+    todo = TOOLCHAINS[language].todo
+    out = _BLOCK.sub(lambda m: f"{m.group(1)}{todo}\n", text)
     if "BEGIN SOLUTION" in out or "END SOLUTION" in out:
         raise ValueError("text: unbalanced BEGIN SOLUTION / END SOLUTION markers")
     return out
@@ -315,107 +382,24 @@ def strip_solutions(text: str, language: str) -> str:
 
 def public_vectors(problem: Problem) -> dict:
     """The public cases of ``problem`` in the shared vectors format, expected values included."""
-    cases = []
-    for i, inp in enumerate(problem.public()):
-        expected = {k: np.asarray(v, dtype=float).tolist() for k, v in problem.reference(inp).items()}
-        cases.append(
-            {
-                "id": f"public-{i}",
-                "input": inp,
-                "expected": expected,
-                "rtol": problem.rtol,
-                "atol": problem.atol,
-            }
-        )
-    return {"problem": problem.name, "cases": cases}
+    return problem.document(problem.public_cases())
 
 
 def materialise(ex: LanguageExercise, source_dir: Path, dest: Path, *, stub: bool) -> list[Path]:
     """Write the exercise's folder into ``dest``: the student file (its stub with ``stub=True``), the
     grader's support files, the public tests' vectors ``public.json`` and the local build files."""
-    from ...ports.vectors import dumps
-
     tc = ex.toolchain
     dest.mkdir(parents=True, exist_ok=True)
     name = tc.source_name(ex.problem)
     text = (source_dir / name).read_text(encoding="utf-8")
     files = {name: strip_solutions(text, ex.language) if stub else text}
-    if ex.language == "cpp":
-        files["exercise.hpp"] = support_text("cpp", f"{ex.problem}.hpp")
-        files["harness.cpp"] = support_text("cpp", "harness.cpp")
-        files["CMakeLists.txt"] = support_text("cpp", "CMakeLists.txt").replace("@PROBLEM@", ex.problem)
-    elif ex.language == "java":
-        from .toolchains import FILES, JAVA_CLASSPATH
-
-        files["Harness.java"] = support_text("java", "Harness.java")
-        (dest / "api").mkdir(exist_ok=True)
-        for p in sorted((FILES / "java" / "api").iterdir(), key=lambda p: p.name):
-            if p.name.endswith(".java") and p.name != name:  # the other exercises' signatures
-                files[f"api/{p.name}"] = p.read_text(encoding="utf-8")
-        files["run_public_tests.sh"] = (
-            f"#!/bin/sh\n# Compile and run the public tests of {ex.problem}:  sh run_public_tests.sh\n"
-            f"set -e\nCP={JAVA_CLASSPATH}\nmkdir -p classes\n"
-            'javac -encoding UTF-8 -cp "$CP" -sourcepath api -implicit:class -d classes '
-            f"Harness.java {name}\n"
-            f'java -cp "classes:$CP" Harness --check {ex.problem} public.json\n'
-        )
-    elif ex.language == "mathics":
-        files["ft_mathics.py"] = support_text("mathics", "ft_mathics.py")
-    else:
-        files["ft_harness.m"] = support_text("octave", "ft_harness.m")
-        files["run_public_tests.m"] = (
-            f"% Run the public tests of {ex.problem}:  octave-cli --norc run_public_tests.m\n"
-            f"ok = ft_harness('{ex.problem}', 'public.json', true);\nif ~ok\n  exit(1);\nend\n"
-        )
-    doc = public_vectors(PROBLEMS[ex.problem])
-    files["public.json"] = dumps(doc)
+    files.update(tc.bundle_files(ex.problem))
+    files["public.json"] = dumps(public_vectors(GRADED_PROBLEMS[ex.problem]))
+    for rel in files:
+        (dest / rel).parent.mkdir(parents=True, exist_ok=True)
     written = []
     for rel, body in files.items():
         p = dest / rel
         p.write_text(body, encoding="utf-8")
         written.append(p)
-    return written
-
-
-def answered_exercises(student_dir: str | Path) -> tuple[LanguageExercise, ...]:
-    """The language exercises one student's folder holds a source file of (by file name, anywhere
-    below it: Gradescope uploads are often flat)."""
-    root = Path(student_dir)
-    if not root.is_dir():
-        return ()
-    exts = {tc.extension for tc in TOOLCHAINS.values()}
-    names = {p.name for p in root.rglob("*") if p.suffix in exts}
-    return tuple(ex for ex in LANGUAGE_EXERCISES if Path(ex.notebook).name in names)
-
-
-def submitted_exercises(submissions: str | Path) -> tuple[LanguageExercise, ...]:
-    """The language exercises at least one student folder of ``submissions`` holds a source file of.
-
-    ``flowtrack grade`` adds them to the notebooks, so a class answering only in Python gets the same
-    ``grades.csv`` as before, and every answered (exercise, language) item gets its column.
-    """
-    root = Path(submissions)
-    found: set[str] = set()
-    for d in sorted(root.iterdir()) if root.is_dir() else []:
-        if d.is_dir() and not d.name.startswith("."):
-            found.update(ex.id for ex in answered_exercises(d))
-    return tuple(ex for ex in LANGUAGE_EXERCISES if ex.id in found)
-
-
-def release_languages(source: Path, dest: Path) -> list[str]:
-    """Write the stubs of every language exercise found under ``source`` (the course's ``exercises/``)
-    into ``dest`` (the bundle's ``exercises/``) at the same relative paths, with the public tests,
-    the build files and each language's ``README.md``; return the student files written (relative)."""
-    written = []
-    for ex in LANGUAGE_EXERCISES:
-        folder = Path(source) / ex.language / ex.problem
-        if not (folder / ex.toolchain.source_name(ex.problem)).is_file():
-            continue
-        materialise(ex, folder, Path(dest) / ex.language / ex.problem, stub=True)
-        readme = Path(source) / ex.language / "README.md"
-        if readme.is_file():
-            (Path(dest) / ex.language / "README.md").write_text(
-                readme.read_text(encoding="utf-8"), encoding="utf-8"
-            )
-        written.append(ex.notebook)
     return written

@@ -1,59 +1,104 @@
-"""Shared types of the port harnesses.
+r"""The shared vectors format: one JSON dump for the ports' files and the students' ``public.json``.
 
-Every language harness (C++, Java, Octave, Mathics, block diagram) reads every case of the vector
-files of the problems it implements, compares with the case's tolerance itself, and prints one line
-per case on stdout::
+A problem document is ``{"problem": name, "cases": [{"id", "input", "expected", "rtol", "atol"},
+...]}`` (the grader sends cases without ``expected``/``rtol``/``atol`` into a sandbox). Matrices are
+nested lists, row by row. :func:`dumps` writes it canonically: sorted keys, floats as Python's
+shortest round-trip ``repr``, one case per line (readable diffs).
+
+A port passes a case iff every expected number ``e`` and its own ``g`` satisfy
+:math:`|g - e| \le atol + rtol\,|e|`. Every port harness (C++, Java, Octave, Mathics, block
+diagram) reads every case of the files of the problems it implements, compares with the case's
+tolerance itself and prints one line per case on stdout::
 
     CASE <problem> <case_id> PASS|FAIL <max_abs_error> <free text message>
 
-(``max_abs_error`` as a float, ``nan`` when the case could not be computed). A ``lang_*`` module runs
-the harness and turns those lines into :class:`CaseResult` objects with :func:`parse_case_lines`
-(:func:`harness_results` adds a failed result when a harness printed no line at all). Ports run in
-Python (Mathics, block diagram) compare with :func:`compare_outputs` instead.
+(``max_abs_error`` as a float, ``nan`` when the case could not be computed), which
+:func:`parse_case_lines` turns into :class:`CaseResult`\ s (:func:`harness_results` adds a failed
+result when a harness printed no line at all). Ports run in Python (Mathics, block diagram) compare
+with :func:`compare_outputs` instead.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 from dataclasses import dataclass
-from pathlib import Path
-
-from ..course import ports_dir, vectors_dir
 
 __all__ = [
     "CaseResult",
-    "ToolchainMissing",
     "compare_outputs",
+    "dumps",
     "failure",
     "harness_results",
     "parse_case_lines",
+    "plain",
 ]
 
 
+def plain(obj):
+    """``obj`` with numpy arrays and scalars turned into Python lists, floats, ints and bools.
 
-def __getattr__(name: str) -> Path:
-    """``PORTS_DIR`` (the course's ports folder: sources, ``vectors/``, the build cache ``build/``)
-    and ``VECTORS_DIR``, looked up when read (``--course``/``$FLOWTRACK_COURSE``/the current folder,
-    see :mod:`flowtrack_course.course`)."""
-    if name == "PORTS_DIR":
-        return ports_dir()
-    if name == "VECTORS_DIR":
-        return vectors_dir()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    Floats must be finite; a negative zero becomes ``0.0`` (the files hold no ``-0.0``).
 
-
-class ToolchainMissing(RuntimeError):
-    """A compiler/interpreter a port needs is not installed (never a silent skip).
-
-    The port harnesses' error; the grader has its own,
-    :class:`flowtrack_course.grading.languages.toolchains.ToolchainMissing`.
+    Examples
+    --------
+    >>> import numpy as np
+    >>> plain({"a": np.arange(2), "b": np.float64(-0.0), "c": (1.5, np.bool_(True))})
+    {'a': [0, 1], 'b': 0.0, 'c': [1.5, True]}
     """
+    if hasattr(obj, "tolist") and not isinstance(obj, (bool, int, float, str)):  # numpy arrays, scalars
+        return plain(obj.tolist())
+    if isinstance(obj, dict):
+        return {str(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    if isinstance(obj, bool):
+        return bool(obj)
+    if isinstance(obj, int):
+        return int(obj)
+    if isinstance(obj, float):
+        value = float(obj)
+        if not math.isfinite(value):
+            raise ValueError(f"vector values must be finite, got {value}")
+        return value + 0.0  # no negative zero in the files
+    return obj
+
+
+def dumps(doc: dict) -> str:
+    """Serialise a problem document: sorted keys, ``repr``-exact floats, one case per line.
+
+    Parameters
+    ----------
+    doc : dict
+        ``{"problem": str, "cases": [dict, ...]}``.
+
+    Returns
+    -------
+    str
+        JSON text ending in a newline; ``json.loads`` gives ``doc`` back exactly.
+
+    Examples
+    --------
+    >>> print(dumps({"problem": "p", "cases": [{"id": "a", "input": {"x": 0.1}}]}), end="")
+    {"cases": [
+    {"id": "a", "input": {"x": 0.1}}
+    ], "problem": "p"}
+    """
+    if not isinstance(doc, dict) or "problem" not in doc or "cases" not in doc:
+        raise ValueError("doc must be a dict with keys 'problem' and 'cases'")
+    cases = [json.dumps(plain(c), sort_keys=True, allow_nan=False) for c in doc["cases"]]
+    rest = {k: v for k, v in doc.items() if k != "cases"}
+    head = json.dumps(plain(rest), sort_keys=True, allow_nan=False)
+    # keys sort as "cases" < "problem": put the case list first, one per line for readable diffs
+    return '{"cases": [\n' + ",\n".join(cases) + "\n], " + head[1:] + "\n"
 
 
 @dataclass(frozen=True)
 class CaseResult:
-    language: str  # e.g. "cpp-eigen", "cpp-pcl", "java", "java-ejml", "java-opencv", "octave", ...
+    """One port's verdict on one vector case (``language`` is the port: ``cpp-eigen``, ``java-ejml``, ...)."""
+
+    language: str
     problem: str
     case_id: str
     passed: bool
@@ -124,7 +169,7 @@ def compare_outputs(got: dict, expected: dict, rtol: float, atol: float) -> tupl
     >>> compare_outputs({"Q": [[1.0, 2.5]]}, {"Q": [[1.0, 2.0]], "T_true": 0.0}, 0.0, 0.1)
     (False, 0.5, 'Q[0, 1]: got 2.5, expected 2.0')
     """
-    import numpy as np  # not at module level: ``flowtrack --help`` imports this module
+    import numpy as np  # not at module level: ``flowtrack --help`` imports the ports' runner
 
     ok, worst, msg = True, 0.0, "ok"
     for key, exp in expected.items():

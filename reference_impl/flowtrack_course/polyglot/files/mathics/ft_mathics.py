@@ -20,11 +20,15 @@ import sys
 
 
 def to_wl(value):
+    """A number or nested list as a Wolfram Language expression of machine reals (``repr`` digits,
+    ``*^`` exponents): the course's one writer, used by the ports too."""
     if isinstance(value, (list, tuple)):
         return "{" + ", ".join(to_wl(v) for v in value) + "}"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"value: expected numbers or nested lists of numbers, got {type(value).__name__}")
     x = float(value)
     if not math.isfinite(x):
-        raise ValueError(f"non-finite input {x!r}")
+        raise ValueError(f"value: non-finite number {x!r}")
     r = repr(x)
     if "e" in r:
         mant, exp = r.split("e")
@@ -33,6 +37,8 @@ def to_wl(value):
 
 
 def parse_input_form(text):
+    """A Mathics ``InputForm`` of (nested lists of) reals as Python floats and lists (the course's one
+    reader, used by the ports too)."""
     s = re.sub(r"`[0-9.]*", "", text.strip())
     s = s.replace("*^", "e").replace("{", "[").replace("}", "]")
     s = re.sub(r"(\d)\.(?![0-9])", r"\1.0", s)

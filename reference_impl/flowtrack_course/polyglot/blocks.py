@@ -22,22 +22,29 @@ states after every tick: row :math:`k` of ``out.clk.X`` is :math:`(\hat x_k, \ma
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import io
 import json
 from pathlib import Path
 
-import numpy as np
+from .base import Toolchain, python_module
+from .vectors import CaseResult, compare_outputs, failure
 
-from .base import CaseResult, ToolchainMissing, compare_outputs, failure
+__all__ = ["PORTS", "TOOLCHAIN", "run", "build_diagram", "simulate"]
 
-__all__ = ["LANGUAGES", "run", "build_diagram", "simulate"]
-
-LANGUAGES: tuple[str, ...] = ("blocks",)
+#: The ports this module runs (the names in ``flowtrack ports``' table).
+PORTS: tuple[str, ...] = ("blocks",)
 PROBLEMS: tuple[str, ...] = ("kalman_cv2d",)
+#: A port only: students do not answer in block diagrams (no ``extension``).
+TOOLCHAIN = Toolchain(
+    "blocks",
+    "Simulink-style block diagram (bdsim)",
+    port_requirements=(python_module("bdsim", package='-e ".[ports]" (PyPI bdsim)'),),
+)
 
 
 def _model(dt: float, q: float, r: float):
+    import numpy as np  # numpy and bdsim load when a diagram is built: ``flowtrack --help`` lists this port
+
     F = np.eye(4)
     F[0, 2] = F[1, 3] = dt
     H = np.eye(2, 4)
@@ -63,6 +70,7 @@ def build_diagram(dt: float, process_var: float, meas_var: float, x0, P0, measur
         The simulator and the compiled diagram.
     """
     import bdsim
+    import numpy as np
 
     if not (isinstance(dt, (int, float)) and dt > 0):
         raise ValueError(f"dt: expected a number > 0, got {dt!r}")
@@ -132,6 +140,8 @@ def simulate(dt, process_var, meas_var, x0, P0, measurements, dotfile: Path | No
     P : ndarray, shape (4, 4)
         Covariance after the last update.
     """
+    import numpy as np
+
     sim, bd = build_diagram(dt, process_var, meas_var, x0, P0, measurements)
     if dotfile is not None:
         bd.dotfile(str(dotfile))
@@ -148,6 +158,8 @@ def _export_picture(build: Path) -> None:
     """Write the diagram as Graphviz ``.dot`` (and ``.png`` when ``dot`` is installed) to ``build``."""
     import shutil
     import subprocess
+
+    import numpy as np
 
     dot = build / "kalman_cv2d.dot"
     simulate(0.1, 1.0, 4.0, np.zeros(4), 1e3 * np.eye(4), [[0.0, 0.0]], dotfile=dot)
@@ -171,11 +183,12 @@ def run(vectors_dir: Path, build_dir: Path) -> list[CaseResult]:
 
     Raises
     ------
-    flowtrack_course.ports.base.ToolchainMissing
+    flowtrack_course.polyglot.base.ToolchainMissing
         bdsim is not installed (``pip install -e ".[ports]"``).
     """
-    if importlib.util.find_spec("bdsim") is None:
-        raise ToolchainMissing('bdsim not installed: pip install -e ".[ports]" (PyPI bdsim)')
+    import numpy as np
+
+    TOOLCHAIN.check(ports=True)
     build = Path(build_dir) / "blocks"
     build.mkdir(parents=True, exist_ok=True)
     _export_picture(build)

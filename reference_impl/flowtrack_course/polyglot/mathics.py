@@ -1,62 +1,103 @@
-r"""Run the Mathematica port on Mathics3 against the shared test vectors.
+r"""Mathematica on Mathics3: the port on the shared vectors, and the grader's recipe for an answer.
 
-Sources: ``cpp_java_matlab_ports/mathematica/`` — ``KalmanCV2D.wl`` (the syllabus' functional filter
-with ``Q = KroneckerProduct[Q1d, IdentityMatrix[2]]``), ``SteadyState.wl`` (the scalar Riccati
-equation solved with ``Solve``, positive root), ``ProjectionJacobian.wl`` (``D`` via ``Outer``).
+**One Wolfram-language writer and reader.** Mathics3 has no JSON reader worth relying on, so every
+case is written as a Wolfram Language expression (machine reals with ``repr`` precision, ``*^``
+exponents) and every answer is read back from its ``InputForm``. Both directions live in the
+students' harness ``files/mathics/ft_mathics.py``, which must stand alone (students run it; the
+sandbox runs it without flowtrack); :func:`harness` loads that file as a module and the ports use
+its :func:`to_wl`, :func:`parse_input_form` and session instead of keeping a second copy.
 
-Mathics3 has no JSON reader worth relying on, so this module turns each vector case into a Wolfram
-Language expression (inputs written as machine reals with ``repr`` precision, ``*^`` exponents),
-runs all of them in *one* fresh Mathics3 process (``python -m flowtrack_course.ports.lang_mathics JOB``,
-about 3 s start-up), reads each result printed in ``InputForm`` (16 significant digits for machine
-reals; the steady state is printed with 30 digits) and compares it with the case's tolerance here,
-in Python: pass iff every ``|got - exp| <= atol + rtol |exp|``.
+**Port.** Sources: ``cpp_java_matlab_ports/mathematica/``: ``KalmanCV2D.wl`` (the syllabus'
+functional filter with ``Q = KroneckerProduct[Q1d, IdentityMatrix[2]]``), ``SteadyState.wl`` (the
+scalar Riccati equation solved with ``Solve``, positive root), ``ProjectionJacobian.wl`` (``D`` via
+``Outer``). All cases run in *one* fresh Mathics3 process (``python -m
+flowtrack_course.polyglot.mathics JOB``, about 3 s start-up); each result is printed in ``InputForm``
+(16 significant digits for machine reals; the steady state with 30 digits) and compared with the
+case's tolerance here, in Python. Every case of every problem in :data:`PROBLEMS` is run, including
+the 1000-step ``kalman_cv2d`` case: Mathics3 needs about 70 ms per 4×4 filter step (that case alone
+takes about 75 s); its ``FoldList`` is quadratic in the list length, hence the port's linear
+``kalmanFoldList``, and it counts every symbol rewrite of one top-level evaluation against
+``$IterationLimit``, hence the ``Block[{$IterationLimit = Infinity}, ...]`` around the fold (both
+explained in ``KalmanCV2D.wl``).
 
-Every case of every problem in :data:`PROBLEMS` is run, including the 1000-step ``kalman_cv2d``
-case. Speed: Mathics3 needs about 70 ms per 4×4 filter step (the 1000-step case alone takes about
-75 s); Mathics3's ``FoldList`` is quadratic in the list length, hence the port's linear
-``kalmanFoldList`` (same result), and Mathics3 counts every symbol rewrite of one top-level
-evaluation against ``$IterationLimit``, hence the ``Block[{$IterationLimit = Infinity}, ...]``
-around the fold (both explained in ``KalmanCV2D.wl``).
+**Answers.** A student writes ``<problem>.wl``; ``ft_mathics.py`` runs inside the sandbox's child
+itself (:meth:`MathicsToolchain.inproc`): in ``flowtrack grade`` the child is forked from a zygote
+that loaded the interpreter and built one pristine set of definitions before any student code
+existed, so an item starts Mathics3 in milliseconds, not in the ~3 s (~10 s on a busy machine) of a
+fresh interpreter (~0.6 s of CPU per item, ~7.6 s with a fresh interpreter per run).
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
-import importlib.util
 import json
-import math
-import re
 import subprocess
 import sys
+import types
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from ..course import ports_dir
-from .base import CaseResult, ToolchainMissing, compare_outputs, failure
+from .base import FILES, Toolchain, python_module, support_text
+from .vectors import CaseResult, compare_outputs, failure
 
 __all__ = [
-    "LANGUAGES",
+    "PORTS",
     "PROBLEMS",
+    "TOOLCHAIN",
+    "case_expression",
+    "harness",
+    "parse_input_form",
     "run",
     "to_wl",
-    "parse_input_form",
-    "case_expression",
 ]
 
-LANGUAGES: tuple[str, ...] = ("mathics",)
+#: The ports this module runs (the names in ``flowtrack ports``' table).
+PORTS: tuple[str, ...] = ("mathics",)
+#: The vector problems the port implements.
 PROBLEMS: tuple[str, ...] = ("kalman_cv2d", "white_noise_q", "projection_jacobian", "steady_state_scalar")
-
-def _src_dir() -> Path:
-    """The Mathematica sources in the course folder (see :mod:`flowtrack_course.course`)."""
-    return ports_dir() / "mathematica"
-
-
-def __getattr__(name: str) -> Path:
-    if name == "SRC_DIR":  # read lazily: the course folder is chosen at run time
-        return _src_dir()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 SOURCES = ("KalmanCV2D.wl", "SteadyState.wl", "ProjectionJacobian.wl")
+
+
+@dataclass(frozen=True)
+class MathicsToolchain(Toolchain):
+    """An answer in Mathematica, evaluated by ``ft_mathics.py`` in the sandboxed child's own process."""
+
+    def support_files(self, problem: str) -> dict[str, str]:
+        return {"ft_mathics.py": support_text("mathics", "ft_mathics.py")}
+
+    def inproc(self, problem: str) -> dict | None:
+        return {"file": "ft_mathics.py", "function": "grade", "args": [problem, self.source_name(problem)]}
+
+    def run_command(self, problem: str) -> list[str]:
+        # @PYTHON@: the sandbox's own interpreter (see flowtrack_course.grading.languages.driver)
+        return ["@PYTHON@", "-I", "-S", "ft_mathics.py", problem, "cases.json", self.source_name(problem)]
+
+    def bundle_files(self, problem: str) -> dict[str, str]:
+        return {"ft_mathics.py": support_text("mathics", "ft_mathics.py")}
+
+
+TOOLCHAIN = MathicsToolchain(
+    "mathics",
+    "Mathematica (Mathics3)",
+    requirements=(python_module("mathics", package='-e ".[ports]" (PyPI mathics3)'),),
+    extension=".wl",
+    todo="(* YOUR CODE HERE *)",
+    compile_seconds=0.0,  # nothing to build; a fresh interpreter's start-up is part of the run
+    run_seconds=30.0,
+)
+
+
+@functools.cache
+def harness() -> types.ModuleType:
+    """The students' harness ``files/mathics/ft_mathics.py``, loaded as a module (see the module
+    docstring: the one Wolfram-language writer and reader)."""
+    path = FILES / "mathics" / "ft_mathics.py"
+    module = types.ModuleType("ft_mathics")
+    module.__file__ = str(path)
+    exec(compile(path.read_text(encoding="utf-8"), str(path), "exec"), module.__dict__)
+    return module
 
 
 def to_wl(value) -> str:
@@ -67,22 +108,7 @@ def to_wl(value) -> str:
     >>> to_wl([[1, -2.5e-07], [3.0, 0.1]])
     '{{1.0, -2.5*^-7}, {3.0, 0.1}}'
     """
-    if isinstance(value, (list, tuple)):
-        return "{" + ", ".join(to_wl(v) for v in value) + "}"
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise TypeError(f"value: expected numbers or nested lists of numbers, got {type(value).__name__}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise ValueError(f"value: non-finite number {x!r}")
-    r = repr(x)
-    if "e" in r:
-        mant, exp = r.split("e")
-        return (mant if "." in mant else mant + ".") + f"*^{int(exp)}"
-    return r if "." in r else r + "."
-
-
-_BACKTICK = re.compile(r"`[0-9.]*")
-_BARE_POINT = re.compile(r"(\d)\.(?![0-9])")
+    return harness().to_wl(value)
 
 
 def parse_input_form(text: str):
@@ -93,17 +119,21 @@ def parse_input_form(text: str):
     >>> parse_input_form("{{0., 1.5*^-7}, {2, -3.25`30.}}")
     [[0.0, 1.5e-07], [2, -3.25]]
     """
-    s = _BACKTICK.sub("", text.strip())
-    s = s.replace("*^", "e").replace("{", "[").replace("}", "]")
-    s = _BARE_POINT.sub(r"\1.0", s)
-    return json.loads(s)
+    return harness().parse_input_form(text)
+
+
+# -- the port -----------------------------------------------------------------------------------------
+def _src_dir() -> Path:
+    """The Mathematica sources in the course folder (see :mod:`flowtrack_course.course`)."""
+    return ports_dir() / "mathematica"
+
 
 
 def case_expression(problem: str, inp: dict) -> str:
     """The Wolfram Language expression whose ``InputForm`` is the port's answer for one case."""
     if problem == "kalman_cv2d":
         x0 = inp.get("x0", [0.0] * 4)
-        P0 = inp.get("P0", (1e3 * np.eye(4)).tolist())
+        P0 = inp.get("P0", [[1e3 if i == j else 0.0 for j in range(4)] for i in range(4)])
         args = [inp["dt"], inp["process_var"], inp["meas_var"], x0, P0, inp["measurements"]]
         return "N[kalmanCV2D[" + ", ".join(to_wl(a) for a in args) + "]]"
     if problem == "white_noise_q":
@@ -149,11 +179,10 @@ def run(vectors_dir: Path, build_dir: Path, *, reuse: bool = False) -> list[Case
 
     Raises
     ------
-    flowtrack_course.ports.base.ToolchainMissing
+    flowtrack_course.polyglot.base.ToolchainMissing
         The ``mathics3`` Python package is not installed (``pip install -e ".[ports]"``).
     """
-    if importlib.util.find_spec("mathics") is None:
-        raise ToolchainMissing('Mathics3 not installed: pip install -e ".[ports]" (PyPI mathics3)')
+    TOOLCHAIN.check(ports=True)
     vectors_dir = Path(vectors_dir)
     results: list[CaseResult] = []
     jobs, meta = [], []
@@ -211,13 +240,8 @@ def run(vectors_dir: Path, build_dir: Path, *, reuse: bool = False) -> list[Case
 
 def _main(job_path: str) -> int:  # pragma: no cover - runs in the Mathics subprocess
     """Evaluate the job's sources and expressions; print ``RESULT i <InputForm>`` per expression."""
-    from mathics.core.load_builtin import import_and_load_builtins
-
-    import_and_load_builtins()
-    from mathics.session import MathicsSession
-
     job = json.loads(Path(job_path).read_text())
-    session = MathicsSession()
+    session = harness().new_session()
     for src in job["sources"]:
         session.evaluate(f'Get["{src}"]')
     for i, expr in enumerate(job["expressions"]):
