@@ -27,10 +27,11 @@ pytest.importorskip("nbgrader")
 
 from flowtrack_course.grading.assign.release import release, release_notebook  # noqa: E402
 from flowtrack_course.grading.check import check_notebook  # noqa: E402
+from flowtrack_course.grading.engine.discovery import grading_files  # noqa: E402
 from flowtrack_course.grading.engine.seeds import public_seed, student_seed  # noqa: E402
 from flowtrack_course.grading.export.gradebook import grade_cells, notebook_name  # noqa: E402
 from flowtrack_course.grading.grade import grade_class  # noqa: E402
-from grading_helpers import EXERCISES, class_job, get_exercise, source_notebook  # noqa: E402
+from grading_helpers import COURSE_SET, EXERCISES, class_job, get_exercise, source_notebook  # noqa: E402
 
 pytestmark = pytest.mark.xdist_group("grading_commands")
 
@@ -95,14 +96,23 @@ def test_release_bundle_has_no_solutions_hidden_tests_or_outputs(bundle):
     assert sorted(Path(n).stem for n in info["lessons"]) == lessons
     for ex in EXERCISES:
         assert (out / "exercises" / ex.notebook).is_file()
+    # the grading modules are the instructor's test code (what `flowtrack check` runs; they were in the
+    # installed package before exercises had folders): their reference computations are no leak
+    tests = {out / "exercises" / ex.id / p.relative_to(COURSE_SET.folder(ex.id))
+             for ex in EXERCISES for p in grading_files(COURSE_SET.folder(ex.id))}
+    assert tests and all(p.is_file() for p in tests)
     text = {}
     for p in out.rglob("*"):
         assert "solutions" not in p.relative_to(out).parts
         if p.is_file():
             text[p] = p.read_text(encoding="utf-8")
-    everything = "\n".join(text.values())
     for marker in ("BEGIN SOLUTION", "END SOLUTION", "BEGIN HIDDEN TESTS", "END HIDDEN TESTS"):
-        assert marker not in everything
+        assert marker not in "\n".join(text.values())
+    # nothing else of the exercises' folders: no notebook with its solutions, worked solution, test
+    # answers or source in another language
+    assert {p for p in text if p.parent.parent == out / "exercises" and p.parent.name in
+            {ex.id for ex in EXERCISES}} == tests
+    everything = "\n".join(v for p, v in text.items() if p not in tests)
     for p in out.rglob("*.ipynb"):
         nb = json.loads(text[p])
         for cell in nb["cells"]:

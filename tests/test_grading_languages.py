@@ -12,17 +12,26 @@ from __future__ import annotations
 import itertools
 import json
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from flowtrack_course.grading.engine.discovery import discover
 from flowtrack_course.grading.engine.run import run_exercise
 from flowtrack_course.grading.engine.spec import Outcome
 from flowtrack_course.grading.grade import grade_class
-from flowtrack_course.grading.languages import PROBLEMS, TOOLCHAINS, materialise, strip_solutions
+from flowtrack_course.grading.languages import (
+    PROBLEMS,
+    TOOLCHAINS,
+    LanguageSource,
+    materialise,
+    strip_solutions,
+)
 from flowtrack_course.grading.languages.exercises import _score_cases
 from grading_helpers import (
+    COURSE_SET,
     LANGUAGE_EXERCISES,
     LANGUAGES,
     class_job,
@@ -219,6 +228,43 @@ def test_release_writes_stubs_tests_and_readmes_at_the_same_paths(tmp_path):
                 np.testing.assert_allclose(v, ref[k], rtol=0, atol=0)
         assert (tmp_path / ex.language / "README.md").is_file()
     assert (tmp_path / "cpp" / "kalman_step" / "CMakeLists.txt").read_text().count("kalman_step") >= 1
+
+
+def test_sources_live_in_the_folder_of_the_exercise_they_are_a_form_of():
+    for ex in LANGUAGE_EXERCISES:
+        assert instructor_source(ex) == COURSE_SET.folder(ex.exercise) / ex.language / ex.source_name
+    owners = {ex.problem: ex.exercise for ex in LANGUAGE_EXERCISES}
+    assert owners == {"projection_jacobian": "ex01_projection_jacobian", "cv_model": "ex05_cv_model",
+                      "kalman_step": "ex06_kalman_predict_update",
+                      "mahalanobis_gating": "ex07_mahalanobis_gating", "assignment": "ex08_hungarian"}
+
+
+def test_a_course_in_the_earlier_layout_releases_the_same_stubs(tmp_path):
+    """Sources at ``exercises/<lang>/<problem>/<file>`` and guides at ``exercises/<lang>/README.md``
+    (the layout before the sources moved into the exercises' folders) are still found."""
+    course = tmp_path / "course"
+    (course / "exercises" / "ex05_cv_model").mkdir(parents=True)
+    shutil.copy(COURSE_SET.folder("ex05_cv_model") / "grading.py", course / "exercises" / "ex05_cv_model")
+    for ex in LANGUAGE_EXERCISES:
+        if ex.problem == "cv_model":
+            legacy = course / "exercises" / ex.notebook
+            legacy.parent.mkdir(parents=True)
+            shutil.copy(instructor_source(ex), legacy)
+            shutil.copy(LANGUAGES.guide(ex.language), legacy.parent.parent / "README.md")
+    old = LanguageSource(discover(course))
+    cv = [ex.id for ex in LANGUAGE_EXERCISES if ex.problem == "cv_model"]
+    assert [ex.id for ex in old.exercises()] == cv
+    written = old.release(course / "exercises", tmp_path / "old")
+    assert LANGUAGES.release(SOURCES, tmp_path / "new")
+    assert len(written) == 4
+    for rel in written:
+        folder = Path(rel).parent
+        for f in sorted((tmp_path / "new" / folder).rglob("*")):
+            if f.is_file():
+                assert (tmp_path / "old" / folder / f.relative_to(tmp_path / "new" / folder)).read_bytes() \
+                    == f.read_bytes(), f
+        assert (tmp_path / "old" / folder.parent / "README.md").read_bytes() == \
+            (tmp_path / "new" / folder.parent / "README.md").read_bytes()
 
 
 # -- the sandbox: solutions, stubs, wrong variants, compile errors ---------------------------------

@@ -13,6 +13,7 @@ from __future__ import annotations
 import ast
 import json
 import re
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -254,30 +255,48 @@ def test_exercise_texts_do_not_print_another_exercises_answer():
     assert not any(other_order.search(t) for k, t in text.items() if k != "ex11_concepts")
 
 
-def test_a_bundle_with_checks_checks_its_exercises_on_its_own(tmp_path):
-    """A student's `flowtrack check` in a bundle made ``--with-checks`` (no course checkout around)
-    finds the exercise's grading module there; such a bundle holds each exercise's grading files and
-    nothing else of the course's exercise folders (no notebook with its solutions, worked solution or
-    test answers). A plain bundle holds no grading module."""
+def _check_in(folder: Path, target: str) -> subprocess.CompletedProcess:
+    """``flowtrack check TARGET`` run from ``folder`` as a student would (no course around)."""
     import os
 
-    plain = tmp_path / "plain"
-    release(plain, source=ROOT)
-    assert not list((plain / "exercises").glob("ex*/*.py"))
-    bundle = tmp_path / "bundle"
-    release(bundle, source=ROOT, with_checks=True)
+    env = {k: v for k, v in os.environ.items() if k != "FLOWTRACK_COURSE"}
+    code = f"import sys\nfrom flowtrack_course.cli import main\nsys.exit(main(['check', {target!r}]))\n"
+    return subprocess.run([sys.executable, "-c", code], cwd=folder, env=env, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_the_default_bundle_checks_its_exercises_on_its_own(bundle, tmp_path):
+    """A student's `flowtrack check` in a bundle made by a plain `flowtrack release` (no course
+    checkout around, no $FLOWTRACK_COURSE) finds the exercise's grading module there, for a notebook
+    and for an answer in another language; the bundle holds each exercise's grading files and
+    nothing else of the course's exercise folders (no notebook with its solutions, worked solution,
+    test answers or source in another language). ``--with-checks`` is an alias kept for scripts."""
+    from flowtrack_course.cli import main
+
     ids = sorted(p.parent.name for p in (ROOT / "exercises").glob("ex*/grading.py"))
     assert ids and all((bundle / "exercises" / i / "grading.py").is_file() for i in ids)
-    leaked = [p for p in (bundle / "exercises").glob("ex*/*") if p.suffix in (".ipynb", ".md")
-              or p.name == "cases.py"]
+    kept = [p for p in (bundle / "exercises").glob("ex*/**/*") if p.is_file()]
+    leaked = [p for p in kept if p.suffix in (".ipynb", ".md") or p.name == "cases.py"
+              or b"SOLUTION" in p.read_bytes()]
     assert not leaked, leaked
-    env = {k: v for k, v in os.environ.items() if k != "FLOWTRACK_COURSE"}
-    code = ("import sys\nfrom flowtrack_course.cli import main\n"
-            "sys.exit(main(['check', 'exercises/ex05_cv_model.ipynb']))\n")
-    r = subprocess.run([sys.executable, "-c", code], cwd=bundle, env=env, capture_output=True, text=True,
-                       timeout=300)
+    assert list((ROOT / "exercises").glob("ex*/cpp/*.cpp"))  # ... though the course keeps them there
+
+    r = _check_in(bundle, "exercises/ex05_cv_model.ipynb")
     assert r.returncode == 1, r.stdout + r.stderr  # the released stub fails its public tests ...
     assert "public score: 0 / 3" in r.stdout  # ... graded by the bundle's own copy of the tests
-    r = subprocess.run([sys.executable, "-c", code], cwd=plain, env=env, capture_output=True, text=True,
-                       timeout=300)
+    r = _check_in(bundle, "exercises/octave/cv_model/cv_model.m")
+    assert r.returncode == 1, r.stdout + r.stderr  # the stub of the Octave answer, in the sandbox
+    assert "public score: 0 / 1" in r.stdout
+
+    alias = tmp_path / "alias"
+    assert main(["release", "--course", str(ROOT), "--out", str(alias), "--with-checks"]) == 0
+    files = sorted(p.relative_to(alias) for p in alias.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(bundle) for p in bundle.rglob("*") if p.is_file())
+
+    # a bundle whose tests were deleted says what is missing
+    bare = tmp_path / "bare"
+    shutil.copytree(bundle, bare)
+    for i in ids:
+        shutil.rmtree(bare / "exercises" / i)
+    r = _check_in(bare, "exercises/ex05_cv_model.ipynb")
     assert r.returncode == 2 and "holds no exercise's grading module" in r.stderr, r.stderr

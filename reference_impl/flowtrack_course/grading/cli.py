@@ -20,7 +20,7 @@ __all__ = ["register"]
 def _cmd_release(args: argparse.Namespace) -> int:
     from .assign.release import release
 
-    info = release(args.out, source=args.source, force=args.force, with_checks=args.with_checks)
+    info = release(args.out, source=args.source, force=args.force)
     print(
         f"wrote {info['out']}: {len(info['lessons'])} lessons, {len(info['exercises'])} exercises "
         "(no solutions, hidden tests or outputs)"
@@ -200,9 +200,8 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="replace OUT even if it is not an earlier bundle")
     p.add_argument(
         "--with-checks", action="store_true",
-        help="also copy each exercise's grading module into OUT/exercises/<id>/, so that students can run "
-        "`flowtrack check` without the course (those modules compute the expected values with the "
-        "reference and draw the hidden inputs, which stay keyed by your --secret-file)",
+        help="accepted for older scripts: every bundle holds each exercise's grading module "
+        "(OUT/exercises/<id>/grading.py), which `flowtrack check` runs",
     )
     p.set_defaults(func=_cmd_release)
 

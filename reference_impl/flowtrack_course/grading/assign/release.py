@@ -7,11 +7,12 @@
     DIR/exercises/<notebook>         each exercise's notebook (its ``Exercise.notebook``, e.g.
                                      ``exercises/exNN_name.ipynb``), made from the course's
                                      ``exercises/<id>/`` folder
-    DIR/exercises/<id>/              with ``with_checks`` only: the exercise's grading files
-                                     (:func:`~..engine.discovery.grading_files`), so that
-                                     ``flowtrack check`` runs in the bundle without the course
-    DIR/exercises/<lang>/<problem>/  the stubs of the answers in other languages, same paths as in
-                                     the course
+    DIR/exercises/<id>/              the exercise's grading files
+                                     (:func:`~..engine.discovery.grading_files`: its grading
+                                     module), which ``flowtrack check`` runs
+    DIR/exercises/<lang>/<problem>/  the stubs of the answers in other languages, at the students'
+                                     paths (the course keeps their sources in the exercises'
+                                     folders: :mod:`..languages.source`)
 
 The exercise notebooks go through nbgrader's own preprocessors, in the order nbgrader's
 ``generate_assignment`` runs them (without its database step): ``LockCells``, ``ClearSolutions``
@@ -19,14 +20,15 @@ The exercise notebooks go through nbgrader's own preprocessors, in the order nbg
 ``CheckCellMetadata``, ``ComputeChecksums``, ``ClearHiddenTests`` (``### BEGIN HIDDEN TESTS`` blocks
 removed), ``ClearMarkScheme``, ``ComputeChecksums``, ``CheckCellMetadata``. The bundle is then
 scanned (:func:`scan_bundle`); any solution marker, hidden-test marker, output or ``solutions/``
-folder left in it aborts the release.
+folder left in it (in a notebook, a lesson, a stub or any other file) aborts the release.
 
-A student's ``flowtrack check`` runs an exercise's public tests from its grading module, which it
-finds in the course folder (``--course``, ``$FLOWTRACK_COURSE``, the current folder, or the folder
-above the notebook). The bundle holds none by default: a grading module computes the expected values
-with the reference implementation (its mistake variants are near-solutions) and draws the hidden
-inputs. ``with_checks`` copies them into the bundle, so that students can check without the course;
-choose it knowingly (the hidden inputs stay keyed by the instructor's secret).
+A student's ``flowtrack check`` runs an exercise's public tests from its grading module: the
+bundle's own copy (``exercises/<id>/grading.py``), or the course folder's when one is given
+(``--course``, ``$FLOWTRACK_COURSE``). A grading module is the instructor's test code, as the tests
+inside the installed package were before exercises had folders: it computes the expected values with
+the reference implementation (which the student has installed anyway) and draws the hidden inputs,
+which stay keyed by the instructor's secret (never in the bundle); notebooks, worked solutions, the
+course's test answers (``cases.py``) and every file holding a solution block stay in the course.
 """
 
 from __future__ import annotations
@@ -106,7 +108,8 @@ Then start Jupyter with `jupyter lab` and open `lessons/README.md` or an exercis
    your public score and, for each failed test, what was expected against what you returned (the
    worst entry and where it is). When your answer is a mistake the course has seen before, a line
    `mistake <id>: ...` names it, says why it is wrong and which lesson section explains it. It
-   exits with status 0 when every public test passes.
+   exits with status 0 when every public test passes. The tests it runs are in the folders
+   `exercises/<exercise>/` of this copy: leave them as they are.
 
 ## How you are graded
 
@@ -226,10 +229,12 @@ def release(
     *,
     source: str | os.PathLike | None = None,
     force: bool = False,
-    with_checks: bool = False,
+    with_checks: bool = True,
 ) -> dict:
-    """Write the student bundle to ``out`` (see the module docstring; ``with_checks`` adds the
-    exercises' grading modules).
+    """Write the student bundle to ``out`` (see the module docstring).
+
+    ``with_checks`` is accepted for scripts written when the grading modules were an option; every
+    bundle holds them now (``False`` is refused: a bundle without them cannot check anything).
 
     ``out`` must be missing, empty or an earlier bundle (it is then replaced); ``force`` replaces any
     folder. Returns ``{"lessons": [...], "exercises": [...], "languages": [...], "out": Path}``
@@ -246,6 +251,8 @@ def release(
 
     from ...notebooks import is_jupytext_notebook, read_notebook, strip_outputs
 
+    if not with_checks:
+        raise ValueError("with_checks: every bundle holds the grading modules `flowtrack check` runs")
     root = find_course_root(source)
     out = Path(out).resolve()
     course = root.resolve()
@@ -286,7 +293,7 @@ def release(
             nbformat.write(nb, dest)
             exercises.append(ex.notebook)
             folder = catalog.course.folder(ex.id)
-            for p in grading_files(folder) if with_checks else ():  # what `flowtrack check` runs
+            for p in grading_files(folder):  # what `flowtrack check` runs
                 target = tmp / "exercises" / ex.id / p.relative_to(folder)
                 target.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(p, target)

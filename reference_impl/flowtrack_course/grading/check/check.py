@@ -79,7 +79,7 @@ def check_notebook(
         raise ValueError(
             f"notebook: the course folder {catalog.root} holds no exercise's grading module "
             "(exercises/<id>/grading.py): pass --course DIR (a checkout of the course), or ask your "
-            "instructor for a bundle made with `flowtrack release --with-checks`"
+            "instructor for a bundle made by `flowtrack release`"
         )
     renamed_note = ""
     try:

@@ -7,13 +7,14 @@ A course folder holds ``exercises/<id>/``, one folder per exercise, with
   (written with :mod:`.authoring`): the tests, the hidden-input generators, the catalogued
   mistakes with their messages;
 - anything else the exercise's authors keep there: its worked solution (``*.md``), ``cases.py``
-  (the answers the course's own tests grade: typical wrong ones, mistakes written as code), helper
-  modules or data the grading module reads. :func:`grading_files` are the files that go wherever
-  the grader runs (the student bundle, the Gradescope zip): everything but notebooks, Markdown and
-  ``cases.py``.
+  (the answers the course's own tests grade: typical wrong ones, mistakes written as code), the
+  same exercise's answers in other forms (sources in other languages, their solutions between
+  ``BEGIN SOLUTION`` / ``END SOLUTION`` lines), helper modules or data the grading module reads.
+  :func:`grading_files` are the files that go wherever the grader runs (the student bundle, the
+  Gradescope zip): everything but notebooks, Markdown, ``cases.py`` and files holding a solution.
 
 :func:`discover` imports every ``exercises/*/grading.py`` (folders starting with ``_`` or ``.`` and
-folders without one, such as the other languages' ``exercises/<lang>/``, are skipped) under a
+folders without one, such as a folder of guides, are skipped) under a
 module name of its own, checks that each defines an ``EXERCISE`` whose id is its folder's name, and
 returns them sorted by id as an :class:`ExerciseSet` with the course's mistake
 :class:`~.mistakes.Catalogue`. Adding an exercise is adding a folder. The set is made once per
@@ -37,7 +38,15 @@ from pathlib import Path
 from .mistakes import Catalogue
 from .spec import Exercise
 
-__all__ = ["EXERCISES_DIR", "GRADING_MODULE", "ExerciseSet", "discover", "exercise_folders", "grading_files"]
+__all__ = [
+    "EXERCISES_DIR",
+    "GRADING_MODULE",
+    "SOLUTION_MARKER",
+    "ExerciseSet",
+    "discover",
+    "exercise_folders",
+    "grading_files",
+]
 
 #: the folder of a course holding one folder per exercise
 EXERCISES_DIR = "exercises"
@@ -118,11 +127,15 @@ def exercise_folders(root: str | os.PathLike) -> list[Path]:
 #: what stays in the course's exercise folder: the notebook (the solutions), the worked solution and
 #: other Markdown, the answers of the course's own tests
 _COURSE_ONLY = ("*.ipynb", "*.md", "cases.py")
+#: the marker of a solution block in a source of any language (``### BEGIN SOLUTION`` in a
+#: notebook, ``// BEGIN SOLUTION`` in C++ or Java, ``% BEGIN SOLUTION`` in Octave, ...)
+SOLUTION_MARKER = b"BEGIN SOLUTION"
 
 
 def grading_files(folder: str | os.PathLike) -> list[Path]:
     """The files of an exercise folder the grader needs (sorted): all but notebooks, Markdown,
-    ``cases.py``, hidden files and caches."""
+    ``cases.py``, files holding a solution block (:data:`SOLUTION_MARKER`: the answers in other
+    languages), hidden files and caches."""
     folder = Path(folder)
     out = []
     for p in sorted(folder.rglob("*")):
@@ -131,6 +144,8 @@ def grading_files(folder: str | os.PathLike) -> list[Path]:
             continue
         if p.suffix == ".pyc" or any(p.match(pattern) for pattern in _COURSE_ONLY):
             continue
+        if rel != Path(GRADING_MODULE) and SOLUTION_MARKER in p.read_bytes():
+            continue  # (the grading module always goes: a release scan then reports a marker in it)
         out.append(p)
     return out
 
