@@ -6,13 +6,16 @@
 - the grading engine (``flowtrack_course.grading.engine``) imports no exercise, no export, no
   command, no port and no other-language code, and names no exercise of the course; an exercise's
   grading module is written with the engine's authoring API only;
+- the polyglot stack (``flowtrack_course.polyglot``: toolchains, problems, per-language drivers)
+  imports neither the grader nor the ports' command, which never import each other;
 - no import cycle between modules, imports inside functions included (``if TYPE_CHECKING:``
   imports, which never run, excepted);
 - no module uses another module's private names (``from flowtrack.x import _name``, or
   ``x._name`` on an imported module); underscore modules (``_validation``, ``_graph``, ...) are
   helpers shared by their package and may be used whole, but only by their package: the tooling
   never imports a private module of the library;
-- no file of the library, the tooling or the sandbox has more than 900 lines.
+- no file of the library, the tooling or the sandbox (Python, or the harnesses in other languages)
+  has more than 900 lines.
 
 The checker itself is tested on small made-up packages first, so that a green run means something.
 """
@@ -323,7 +326,8 @@ def test_the_sandbox_imports_nothing_of_the_course(graph):
 ABOVE_THE_ENGINE = tuple(
     f"flowtrack_course.{m}"
     for m in ("grading.assign", "grading.check", "grading.grade", "grading.export", "grading.languages",
-              "grading.sources", "grading.cli", "ports", "cli", "demo", "book", "widgets", "notebooks")
+              "grading.sources", "grading.cli", "ports", "polyglot", "cli", "demo", "book", "widgets",
+              "notebooks")
 )
 
 
@@ -352,6 +356,21 @@ def test_the_engine_names_no_exercise_and_exercises_use_its_authoring_api():
                     assert mod in allowed, f"{path.relative_to(ROOT)} imports {mod}"
 
 
+POLYGLOT, PORTS, GRADING = "flowtrack_course.polyglot", "flowtrack_course.ports", "flowtrack_course.grading"
+
+
+@pytest.mark.parametrize(("importer", "imported"), [
+    (POLYGLOT, (GRADING, PORTS)),  # the stack both build and run other languages with
+    (PORTS, (GRADING,)),
+    (GRADING, (PORTS,)),
+])
+def test_the_polyglot_stack_serves_the_ports_and_the_grader_which_never_import_each_other(
+    graph, importer, imported
+):
+    bad = imports_of(graph, importer, imported)
+    assert not bad, f"{importer} imports {imported}:\n" + _shown(graph, bad)
+
+
 def test_no_import_cycles_even_inside_functions(graph):
     found = cycles(graph)
     assert not found, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in found)
@@ -375,10 +394,16 @@ def test_the_tooling_imports_no_private_module_of_the_library(graph):
     assert not bad, "the tooling imports private modules of the library:\n" + _shown(graph, bad)
 
 
+#: the sources of the library, the tooling and the sandbox: Python and the harnesses in other languages
+SOURCE_SUFFIXES = (".py", ".cpp", ".hpp", ".java", ".m", ".wl")
+
+
 def test_no_file_over_900_lines():
+    sources = [p for p in sorted(SRC.rglob("*")) if p.suffix in SOURCE_SUFFIXES]
+    assert {p.suffix for p in sources} >= {".py", ".cpp", ".java", ".m"}
     long = {
         str(p.relative_to(ROOT)): n
-        for p in sorted(SRC.rglob("*.py"))
+        for p in sources
         if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES
     }
     assert not long, f"files over {MAX_LINES} lines (split them along their parts): {long}"
