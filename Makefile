@@ -15,7 +15,7 @@ STAMP := $(VENV)/.flowtrack-installed
 APT_CORE := libusb-1.0-0 libgomp1 libsuitesparse-dev
 # The autograder's sandbox (bubblewrap: namespaces, no network, nothing of the course visible).
 APT_GRADER := bubblewrap
-# Ports (issue 6): C++ (Eigen, PCL), Java (EJML, JUnit 5, OpenCV), Octave.
+# Ports: C++ (Eigen, PCL), Java (EJML, JUnit 5, OpenCV), Octave.
 APT_PORTS_CPP := g++ cmake make libeigen3-dev libpcl-dev nlohmann-json3-dev libgtest-dev
 APT_PORTS_JVM := openjdk-17-jdk-headless libejml-java junit5 libgoogle-gson-java libopencv-java
 APT_PORTS_OCTAVE := octave

@@ -9,9 +9,9 @@ runs one kernel per notebook, one student after the other, so it is measured on 
 (one of each kind, the same mix) and compared per student. Both are measured in the same run, on
 the same machine.
 
-Targets (issue 5): the whole class in < 5 minutes and >= 3x faster per student than nbgrader.
+Targets: the whole class in < 5 minutes and >= 3x faster per student than nbgrader.
 
-Section "answers in other languages" (issue 19, ``--languages``): 20 students x C++, Java, Octave and
+Section "answers in other languages" (``--languages``): 20 students x C++, Java, Octave and
 Mathematica x 4 problems graded by ``flowtrack grade --jobs 2``; wall-clock, CPU seconds of the grader and
 everything it started, and the load average (see ``languages_main``). Target: <= 5 min on 2 idle cores.
 
@@ -251,7 +251,7 @@ def run_nbgrader(course: Path, students: list[tuple[str, str]], subs: Path) -> t
 
 
 # --------------------------------------------------------------------------------------------------
-# Section (issue 19): answers in other languages. A class of N students x every language exercise
+# Section: answers in other languages. A class of N students x every language exercise
 # (C++, Java, Octave, Mathematica x 4 problems; a third solutions, a third stubs, a third partial: every
 # other problem solved) graded by `flowtrack grade --jobs 2` with the toolchain caches warm (the C++
 # and Java harnesses are built once, before timing). Measured: wall-clock, CPU seconds of the grader

@@ -33,7 +33,7 @@ the interior (pixels at least 3 px from a depth edge or an object boundary); the
 optical flow (px); CPU time (``time.process_time``, the fair measure on this shared machine) and wall
 time per pair, single-threaded.
 
-Bars (issue 14): synthetic moving-pixel mean EPE3D ≤ 0.5× the better OpenCV-lifted peer and ≤ 0.5× nearest
+Bars: synthetic moving-pixel mean EPE3D ≤ 0.5× the better OpenCV-lifted peer and ≤ 0.5× nearest
 neighbour; static ≤ 2 mm; interior no worse than that peer; Motorcycle: better than TV-L1 + lifting and
 at least as good as DIS medium + lifting; 320×240 ≤ 0.5 s, 640×480 ≤ 2.0 s per pair, never slower than
 TV-L1 at the same size.

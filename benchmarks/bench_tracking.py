@@ -8,7 +8,7 @@ same run, interleaved, and the ratio is reported.
 
 Targets: ``MultiObjectTracker.step`` >= 10x faster than the peer and >= 2,000 steps per second.
 
-Second section (issue 15), scene flow in the tracker, on the demo's pipeline, by the library calls
+Second section, scene flow in the tracker, on the demo's pipeline, by the library calls
 ``flowtrack_course.demo.run_demo`` makes (synthetic RGB-D frames → clouds → dense variational RGB-D flow
 at the cloud's points, ``flowtrack.pipeline.rgbd_cloud_flow`` → motion clusters of that flow,
 ``scene_flow_and_clusters(..., flow=...)`` → detections with their mean RGB-D velocities,
@@ -161,7 +161,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer frames and repeats")
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
     ap.add_argument("--section", choices=("all", "speed", "flow", "confirm"), default="all",
-                    help="the step-speed section, the scene-flow section (issue 15), the track "
+                    help="the step-speed section, the scene-flow section, the track "
                          "confirmation section (Kinect-like depth) or all")
     ap.add_argument("--flow-image", type=int, nargs=2, default=FLOW_IMAGE, metavar=("H", "W"),
                     help="image size of the scene-flow section's scenes (default %(default)s, the demo's; "
@@ -248,7 +248,7 @@ def speed_section(args) -> bool:
 
 
 # ----------------------------------------------------------------------------------------------------
-# scene flow in the tracker (issue 15)
+# scene flow in the tracker
 # ----------------------------------------------------------------------------------------------------
 FLOW_SCENARIOS = ("crossing", "mixed", "occlusion")
 FLOW_SEEDS = (0, 1, 2)

@@ -1,4 +1,4 @@
-"""Benchmark: `flowtrack demo --input` on TUM-layout sequences that flowtrack did not render (issue 15).
+"""Benchmark: `flowtrack demo --input` on TUM-layout sequences that flowtrack did not render.
 
 The issue's last bar: on an RGB-D sequence in the TUM layout that no one here made, ``tracks.csv``
 follows every object: MOTA >= 0.75 at 15 cm against the objects' centres, at most one ID switch.

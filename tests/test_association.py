@@ -351,7 +351,7 @@ def test_unvalidated_assignment_is_the_validated_one(rng, solver):
         solver(np.array([[np.nan]]), 1.0)
 
 
-# ----------------------------------------------------------------------------- issue 15: min_cost, NLLR
+# ----------------------------------------------------------------------------------- min_cost, NLLR
 def brute_force_min_cost(cost, gate):
     """Least sum of admissible pair costs over all matchings (unmatched rows/columns cost 0)."""
     M, N = cost.shape

@@ -55,7 +55,7 @@ def test_scene_flow_metrics_are_sane(summary):
 
 
 def test_the_rgbd_flow_row_meets_the_issue_bar(summary):
-    """Issue 14: moving-point EPE3D of the variational RGB-D flow <= 0.5x nearest neighbour's, and
+    """Moving-point EPE3D of the variational RGB-D flow <= 0.5x nearest neighbour's, and
     static points (all points' EPE is mostly static ones) within 2 mm per frame."""
     sf = summary["scene_flow"]
     rgbd = sf[RGBD_METHOD]
@@ -496,7 +496,7 @@ def test_open3d_threads_without_set_max_threads_limits_openmp(monkeypatch):
 
 
 # ------------------------------------------------------------------------------------------------
-# tracks.csv and the tracking ablation (issue 15)
+# tracks.csv and the tracking ablation
 # ------------------------------------------------------------------------------------------------
 def _read_tracks(path):
     """tracks.csv with the csv module (not flowtrack.tracking_io): header line and typed rows."""
@@ -589,7 +589,7 @@ def test_tracking_ablation_keys_and_sanity(summary):
     assert fa["mota"] == pytest.approx(tr["mota"], abs=1e-12)
     assert fa["idf1"] == pytest.approx(tr["idf1"], abs=1e-12)
     assert fa["id_switches"] == tr["id_switches"]
-    # issue 15's bars: flow never costs identities nor MOTA (by more than 0.02), and predicts better
+    # the bars: flow never costs identities nor MOTA (by more than 0.02), and predicts better
     assert fa["id_switches"] <= po["id_switches"]
     assert fa["mota"] >= po["mota"] - 0.02
     assert fa["prediction_error_mm"] < po["prediction_error_mm"]

@@ -1,4 +1,4 @@
-"""The exercise notebooks and their trusted tests, discovered in their folders (issue 5, exercises).
+"""The exercise notebooks and their trusted tests, discovered in their folders.
 
 Every notebook is valid nbformat with valid nbgrader metadata that matches its grading module; every
 solution scores full marks, every stub (nbgrader's own ClearSolutions) scores 0 and a typical wrong

@@ -1,4 +1,4 @@
-"""Issue 17: a student who fills the disk must not hurt the other students, in that run or the next.
+"""A student who fills the disk must not hurt the other students, in that run or the next.
 
 The red team filled a filesystem shared with the grader's output: every honest student of the next
 run scored 0 ("No space left on device") and grades.csv could not be written. Here a small ext4

@@ -1,4 +1,4 @@
-"""Issue 17's attacks on the grader's own side: the fallback sandbox, huge notebooks, student folders
+"""Attacks on the grader's own side: the fallback sandbox, huge notebooks, student folders
 named like the grader's outputs, unwritable error text, feedback injection and stale results.
 
 Each must leave the class run whole (every other student graded, grades.csv and the gradebook

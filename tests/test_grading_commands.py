@@ -298,7 +298,7 @@ def test_grades_csv_and_results_json_schema(graded):
             assert t["status"] == ("passed" if t["score"] == t["max_score"] else "failed")
             if t["extra_data"]["hidden"]:
                 assert t["visibility"] == "after_published"
-                # the score line, then (issue 16) why a failed hidden test failed and its mistake lines
+                # the score line, then why a failed hidden test failed and its mistake lines
                 first = t["output"].split("\n")[0]
                 assert re.fullmatch(r"hidden test .+: [0-9.e+-]+ / [0-9.e+-]+", first), t["output"]
             else:

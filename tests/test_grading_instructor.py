@@ -1,4 +1,4 @@
-"""The instructor's side of the grader (issue 18): layout checks, renamed copies, LMS export and
+"""The instructor's side of the grader: layout checks, renamed copies, LMS export and
 roster, seed-key handling, the Gradescope bundle, packaging metadata, misconceptions and class report.
 
 Oracles: hand-written expected mappings for the LMS renames; the Canvas/Moodle files are read back
@@ -714,7 +714,7 @@ def test_grading_imports_only_the_grader_extra(tmp_path):
     )
     data = json.loads(proc.stdout.strip().splitlines()[-1])
     assert data["score"] == pytest.approx(data["max"])
-    # (no sympy here: since issue 16 ex11's trusted scorer parses and compares the symbolic answers
+    # (no sympy here: ex11's trusted scorer parses and compares the symbolic answers
     # with it in the grading process, and the grader extra lists it)
     assert "sympy" in {_req_name(r) for r in _grader_extra()}
     heavy = {"open3d", "skimage", "matplotlib", "IPython", "nbgrader", "jupytext", "sklearn", "tqdm"}

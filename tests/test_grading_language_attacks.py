@@ -1,4 +1,4 @@
-"""Issue 19's attacks in C++, Java, Octave and Mathematica: each scores as an honest wrong answer, changes
+"""Attacks in C++, Java, Octave and Mathematica: each scores as an honest wrong answer, changes
 nothing outside.
 
 Every attack is a student's source file for a language exercise, graded by ``run_exercise`` under

@@ -1,4 +1,4 @@
-"""Issue 19: answers in other languages outside bubblewrap, and re-grading when the grader's files change.
+"""Answers in other languages outside bubblewrap, and re-grading when the grader's files change.
 
 * setpriv (a Gradescope container: root, no namespaces): the child that compiles and runs a C++,
   Java or Octave answer (or runs Mathics3 in-process) is a fresh unprivileged uid; a solution earns

@@ -1,4 +1,4 @@
-"""Issue 19: students answer in C++ (Eigen) and Octave, graded by the same grader.
+"""Students answer in C++ (Eigen) and Octave, graded by the same grader.
 
 Oracles: the problems' expected values (the Python reference) are checked against independent
 formulas (finite differences, explicit inverses, the textbook matrices); the grader's scoring of

@@ -1,4 +1,4 @@
-"""The mistake catalogue and the feedback (issue 16).
+"""The mistake catalogue and the feedback.
 
 Every catalogued mistake, written as the code a student would write (each exercise folder's
 ``cases.py``), is named in the feedback (``mistake <id>: ...``); the right answer gets no mistake

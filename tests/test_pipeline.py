@@ -226,7 +226,7 @@ def test_scene_flow_and_clusters_clusters_a_given_flow(pair):
 
 
 # ------------------------------------------------------------------------------------------------
-# the velocity of a visible centroid (issue 15)
+# the velocity of a visible centroid
 # ------------------------------------------------------------------------------------------------
 def _ray_cast_plate(cam, plate, occluder_x):
     """Depth image and the plate's visible pixel hits, by casting every pixel's ray (brute force).

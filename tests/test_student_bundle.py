@@ -1,4 +1,4 @@
-"""The student bundle works on its own and poses the problems instead of answering them (issue 16).
+"""The student bundle works on its own and poses the problems instead of answering them.
 
 Worked answers to the syllabus' problems are tagged cells of the lessons: the book and the
 instructors' copy keep them, ``flowtrack release`` replaces them by a note; the stripped lessons

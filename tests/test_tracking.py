@@ -433,7 +433,7 @@ def test_custom_associator_returning_lists():
     assert out[0].position[0] > 5.0 and out[1].position[0] < 5.0
 
 
-# ----------------------------------------------------------------------------- issue 15: flow in the tracker
+# --------------------------------------------------------------------------------- flow in the tracker
 def _same_tracks(a, b, atol=1e-9):
     assert [t.id for t in a] == [t.id for t in b]
     assert [t.status for t in a] == [t.status for t in b]

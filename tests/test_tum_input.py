@@ -1,11 +1,11 @@
-"""`flowtrack demo --input` on a TUM-layout sequence that flowtrack did not render (issue 15's last bar).
+"""`flowtrack demo --input` on a TUM-layout sequence that flowtrack did not render.
 
 The sequence comes from ``benchmarks/_boxes.py``, a renderer that shares no code with flowtrack (numpy
 and PIL only: its own ray caster, TUM fr1 camera, textures, Kinect-like depth model and sensor
 clocks): three boxes at 30 Hz, 640x480, one second from the middle of their motions (two boxes cross,
 the far one partly hidden; the third turns). The demo runs by its command line as a user's would, and
-``tracks.csv`` is read with the csv module and scored against the box *centres* at 15 cm, the bar of
-issue 15 (MOTA >= 0.75, at most one ID switch). The full-length runs are in
+``tracks.csv`` is read with the csv module and scored against the box *centres* at 15 cm, against the
+bars (MOTA >= 0.75, at most one ID switch). The full-length runs are in
 ``benchmarks/bench_tum_input.py``.
 """
 

@@ -1,5 +1,5 @@
 """flowtrack works from a wheel installed outside any checkout, against a course folder named by
-``--course`` (issue 13): the tooling never finds the course by counting its own parent folders.
+``--course``: the tooling never finds the course by counting its own parent folders.
 
 The wheel is built from a copy of the sources (``pip wheel --no-deps``) and installed with
 ``--no-deps`` into a fresh virtual environment made without ``--system-site-packages``. Its
