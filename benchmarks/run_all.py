@@ -3,7 +3,8 @@
 Each ``bench_*.py`` measures flowtrack against a peer in the same process (these machines are noisy,
 so only ratios measured side by side are meaningful) and writes its table to ``results/<name>.md``.
 Usage: ``python benchmarks/run_all.py [--quick]``; ``--collect`` only rebuilds RESULTS.md from the
-tables already in ``results/`` (after running one script by hand).
+tables already in ``results/`` (after running one script by hand). Either then regenerates the
+README's headline numbers (``benchmarks/headline.py``).
 """
 
 from __future__ import annotations
@@ -49,6 +50,10 @@ def main() -> int:
         parts += [md.read_text().rstrip(), ""]
     (HERE / "RESULTS.md").write_text("\n".join(parts))
     print("wrote", HERE / "RESULTS.md")
+    sys.path.insert(0, str(HERE))
+    import headline  # the README's table of headline numbers, from the new results
+
+    headline.main([])
     return 1 if failed else 0
 
 

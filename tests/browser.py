@@ -18,7 +18,7 @@ Command line, for looking at pages by hand::
 
     .venv/bin/python tests/browser.py out/book/index.html out/report.html --shots /tmp/shots
 
-and to remake the README's screenshots (``lessons/_static/screenshots/``)::
+and to remake the screenshots of docs/demo.md and docs/course.md (``lessons/_static/screenshots/``)::
 
     .venv/bin/python tests/browser.py out/report.html --screenshot report.png \
         --scroll-to tracking-and-prediction

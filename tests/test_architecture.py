@@ -420,3 +420,63 @@ def test_the_library_package_lists_no_tooling():
     for n in names:
         assert (SRC / LIBRARY / f"{n}.py").is_file() or (SRC / LIBRARY / n / "__init__.py").is_file(), n
     assert not names & {p.stem for p in (SRC / TOOLING).iterdir()}
+
+
+# --------------------------------------------------------------------------------------------------
+# docs/ARCHITECTURE.md names every package and module, and only ones that exist
+ARCHITECTURE = ROOT / "docs" / "ARCHITECTURE.md"
+_NAMED = re.compile(r"`((?:flowtrack|flowtrack_course|grading_sandbox)(?:\.\w+)*)`")
+
+
+def _code_modules() -> dict[str, Path]:
+    """Every package and module of the three packages (harness files and test modules aside: a
+    package's own ``tests`` is named as a package)."""
+    out = {}
+    for root in (LIBRARY, TOOLING, SANDBOX):
+        for path in sorted((SRC / root).rglob("*.py")):
+            rel = path.relative_to(SRC)
+            if "files" in rel.parts or "__pycache__" in rel.parts:
+                continue
+            name = _module_name(path, SRC)
+            if ".tests." in name:
+                continue
+            out[name] = path
+    return out
+
+
+def _resolves(name: str, modules: dict[str, Path]) -> bool:
+    """``name`` is a module, or an attribute (a class, function, constant) of one."""
+    import importlib
+
+    if name in modules:
+        return True
+    module, _, attr = name.rpartition(".")
+    while module and module not in modules:
+        module, _, more = module.rpartition(".")
+        attr = f"{more}.{attr}"
+    if not module:
+        return False
+    obj = importlib.import_module(module)
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            return False
+        obj = getattr(obj, part)
+    return True
+
+
+def test_the_architecture_page_names_every_module_and_no_missing_one():
+    modules = _code_modules()
+    named = set(_NAMED.findall(ARCHITECTURE.read_text(encoding="utf-8")))
+    assert len(modules) > 100 and "flowtrack_course.polyglot.problems.kalman" in modules
+    missing = sorted(m for m in named if not _resolves(m, modules))
+    assert not missing, f"docs/ARCHITECTURE.md names modules that do not exist: {missing}"
+    unnamed = sorted(set(modules) - named)
+    assert not unnamed, f"docs/ARCHITECTURE.md does not name these packages and modules: {unnamed}"
+
+
+def test_the_page_check_catches_a_stale_and_a_missing_module():
+    modules = _code_modules()
+    assert not _resolves("flowtrack.realdata", modules)  # a module that was removed
+    assert not _resolves("flowtrack.kalman.NoSuchFilter", modules)
+    assert _resolves("flowtrack.kalman.KalmanFilter", modules)
+    assert _resolves("flowtrack_course.course.add_course_option", modules)

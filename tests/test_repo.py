@@ -15,6 +15,19 @@ def test_readme_gives_the_two_setup_commands():
     assert "make demo" in text and "make test" in text
 
 
+def test_readme_is_an_entry_page():
+    """About 150 lines: what flowtrack is, the two commands, where each audience starts, one figure
+    and the table of headline numbers; the long explanations live in docs/ and the exercises' README."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 180
+    figures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert len(figures) == 1 and (ROOT / figures[0]).is_file()
+    for audience in ("student", "instructor", "self-study reader"):
+        assert f"**{audience}**" in text
+    for doc in ("docs/ARCHITECTURE.md", "docs/demo.md", "docs/course.md", "exercises/README.md"):
+        assert f"]({doc})" in text, doc
+
+
 def test_ci_runs_the_readme_test_command():
     lines = [ln.strip() for ln in (ROOT / ".ci/run").read_text().splitlines()]
     assert "make test" in lines
@@ -121,11 +134,14 @@ def test_cli_help_on_every_subcommand():
         assert p.format_help().startswith("usage: flowtrack " + name)
 
 
-def _readme_module_table() -> set[str]:
-    """The modules named in the README's module tables (``flowtrack.kalman``, ``bayes`` ->
-    flowtrack.bayes)."""
+ARCHITECTURE = ROOT / "docs" / "ARCHITECTURE.md"
+
+
+def _module_tables() -> set[str]:
+    """The modules named in the first column of docs/ARCHITECTURE.md's module tables
+    (``flowtrack.kalman``; a short name after a full one, ``bayes``, is flowtrack.bayes)."""
     names = set()
-    for line in (ROOT / "README.md").read_text(encoding="utf-8").splitlines():
+    for line in ARCHITECTURE.read_text(encoding="utf-8").splitlines():
         cells = line.split("|")
         if len(cells) < 3 or not re.match(r"`flowtrack(_course)?\.\w+`", cells[1].strip()):
             continue
@@ -135,25 +151,66 @@ def _readme_module_table() -> set[str]:
     return names
 
 
-def test_readme_module_table_matches_the_code():
-    """Every public top-level module of both packages is in the README's tables, and every module
-    there exists (the variational solvers, for one, live in flowtrack.variational)."""
+def test_module_tables_match_the_code():
+    """Every public top-level module of both packages is in the module tables of
+    docs/ARCHITECTURE.md (the README's entry page points there), and every module there exists (the
+    variational solvers, for one, live in flowtrack.variational)."""
 
     def public(package: str) -> set[str]:
         base = ROOT / "reference_impl" / package
         mods = {p.stem for p in base.glob("*.py")} | {p.parent.name for p in base.glob("*/__init__.py")}
         return {f"{package}.{m}" for m in mods if not m.startswith("_")}
 
-    listed = _readme_module_table()
+    listed = _module_tables()
     code = public("flowtrack") | public("flowtrack_course")
-    assert not code - listed, f"modules missing from the README's tables: {sorted(code - listed)}"
-    assert not listed - code, f"README names modules that do not exist: {sorted(listed - code)}"
+    assert not code - listed, f"modules missing from the module tables: {sorted(code - listed)}"
+    assert not listed - code, f"the module tables name modules that do not exist: {sorted(listed - code)}"
+    assert "docs/ARCHITECTURE.md" in (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def _headline():
+    """``benchmarks/headline.py``, the generator of the README's table of headline numbers."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("headline", ROOT / "benchmarks" / "headline.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_readme_headline_numbers_are_generated_from_the_results():
+    """The README's table is what ``benchmarks/headline.py`` makes of ``benchmarks/RESULTS.md``
+    now, and it has a row for every headline (none skipped)."""
+    headline = _headline()
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text(encoding="utf-8")
+    block = headline.table(results)
+    assert block in readme, "README.md's headline numbers are stale: run python benchmarks/headline.py"
+    assert headline.rewrite(readme, block) == readme
+    rows = [ln for ln in block.splitlines() if ln.startswith("| ") and not ln.startswith("| what")]
+    assert len(rows) == len(headline.ROWS) >= 10
+    # the stale figures of the old hand-written table are gone
+    assert "113 s" not in readme and "1.76 s" not in readme
+
+
+def test_the_headline_generator_follows_the_results_and_refuses_missing_numbers():
+    headline = _headline()
+    results = (ROOT / "benchmarks" / "RESULTS.md").read_text(encoding="utf-8")
+    changed = results.replace("| whole class < 300 s | 40.5 s |", "| whole class < 300 s | 412.0 s |")
+    assert changed != results
+    row = next(ln for ln in headline.table(changed).splitlines() if "flowtrack grade --jobs 2`, 100" in ln)
+    assert "412.0 s" in row and row.endswith("| **no** |")
+    with pytest.raises(ValueError, match="grading wall time"):
+        headline.table(results.replace("| whole class < 300 s |", "| the whole class |"))
+    with pytest.raises(ValueError, match="no section"):
+        headline.section(results, "# No such benchmark")
 
 
 def test_readme_points_to_documents_that_exist():
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     assert "API document" not in text  # there is none: the API reference is generated (make book)
     assert "out/book/api.html" in text
-    for target in re.findall(r"\]\(([^)#\s]+)\)", text):
-        if not re.match(r"[a-z]+:", target):
-            assert (ROOT / target).exists(), target
+    for doc in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        for target in re.findall(r"\]\(([^)#\s]+)\)", doc.read_text(encoding="utf-8")):
+            if not re.match(r"[a-z]+:", target):
+                assert (doc.parent / target).exists(), (doc.name, target)
