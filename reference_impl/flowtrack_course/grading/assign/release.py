@@ -68,8 +68,10 @@ This folder holds the course's lessons and its graded exercises:
 
 - `lessons/`: seven lesson notebooks, from the pinhole camera to a multi-object tracker (start with
   `lessons/README.md`);
-- `exercises/`: eleven exercise notebooks; each one says what to implement, which modules you may
-  import, and how it is graded.
+- `exercises/`: the exercise notebooks; each one says what to implement, which modules you may
+  import, and how it is graded. `exercises/<exercise>/` holds the tests `flowtrack check` runs;
+  `exercises/cpp/`, `java/`, `octave/` and `mathics/` hold some of the exercises to answer in those
+  languages instead (each language's `README.md` says how).
 
 ## Install (once)
 
