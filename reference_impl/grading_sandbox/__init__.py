@@ -125,7 +125,7 @@ encodes the data both ways.
 from .isolation import SandboxUnavailable, bwrap_status, choose_mode, readable_by_sandbox
 from .limits import Limits
 from .pool import SandboxPool
-from .sandbox import Sandbox
+from .sandbox import Sandbox, SandboxConfigError
 from .wire import Call, Outcome
 
 __all__ = [
@@ -133,6 +133,7 @@ __all__ = [
     "Limits",
     "Outcome",
     "Sandbox",
+    "SandboxConfigError",
     "SandboxPool",
     "SandboxUnavailable",
     "bwrap_status",

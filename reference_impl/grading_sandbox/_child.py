@@ -28,6 +28,7 @@ import traceback
 
 _MAX_TEXT = 2000
 _PRINT_CAP = 64 * 1024
+_UNAVAILABLE = "is not available in this exercise"  # the import rule's (and the stubs') refusal
 
 
 def _read_exact(fd, n):
@@ -104,11 +105,11 @@ def _import_rule(blocked, allowed, allowed_text, stdlib_paths):
     def refuse(name):
         for b in blocked:
             if name == b or name.startswith(b + "."):
-                raise ImportError(f"{b} is not available in this exercise")
+                raise ImportError(f"{b} {_UNAVAILABLE}")
         top = name.partition(".")[0]
         if allowed is not None and top not in allowed and not in_stdlib(top):
             raise ImportError(
-                f"{top} is not available in this exercise (you may import: {allowed_text}, "
+                f"{top} {_UNAVAILABLE} (you may import: {allowed_text}, "
                 "and the standard library)"
             )
 
@@ -116,6 +117,17 @@ def _import_rule(blocked, allowed, allowed_text, stdlib_paths):
 
 
 _CLEAN_EXIT = 165  # an exercise's child that received "end" (the zygote then cleans and goes on)
+
+
+def _config_error(reply_fd, module, exc):
+    """Tell the grader that ``module`` (numpy, or a module of the allowlist) cannot be imported
+    before any student code ran (its configuration, never the student's doing), and exit."""
+    text = "".join(traceback.format_exception_only(type(exc), exc)).strip()[:_MAX_TEXT]
+    data = json.dumps({"op": "config-error", "module": module, "error": text}).encode("utf-8")
+    buf = struct.pack(">I", len(data)) + data
+    while buf:
+        buf = buf[os.write(reply_fd, buf):]
+    os._exit(0)
 
 
 def _setup(msg):
@@ -211,7 +223,10 @@ def _zygote(msg, reply_fd, stdlib_paths):
 
     ctl = socket.socket(fileno=int(msg["control"]))
     _setup(msg)
-    import numpy  # noqa: F401  - the point: forked children start with it imported
+    try:
+        import numpy  # noqa: F401  - the point: forked children start with it imported
+    except BaseException as exc:
+        _config_error(reply_fd, "numpy", exc)
 
     # Preloading follows the children's import rule (the blocked modules of this sandbox's view and
     # its allowlist): whatever a preloaded module would import that an exercise's child may not is
@@ -329,7 +344,10 @@ def _serve(init, reply_fd, stdlib_paths):
     _setup(init)
     formula = _load_formula()  # before the import guard and any student code
 
-    import numpy as np
+    try:
+        import numpy as np
+    except BaseException as exc:
+        _config_error(reply_fd, "numpy", exc)
 
     ndarray = np.ndarray
     to_list = np.ndarray.tolist
@@ -462,6 +480,16 @@ def _serve(init, reply_fd, stdlib_paths):
             raise PermissionError(f"{event} is not allowed in the sandbox")
 
     sys.addaudithook(audit)
+
+    # What the allowlist names must import, under the rule and the hook student code gets, before
+    # any of it runs: a failure is the grader's configuration (a library of a wheel missing from the
+    # sandbox's view), reported as such instead of as the student's error.
+    for name in init.get("probe", ()):
+        try:
+            __import__(name)
+        except BaseException as exc:
+            if _UNAVAILABLE not in str(exc):  # not what the exercise itself refuses
+                _config_error(reply_fd, name, exc)
 
     # Student prints: fd 1/2 -> /dev/null (C-level writes vanish), sys.stdout/err -> capped buffer.
     devnull = os.open(os.devnull, os.O_WRONLY)

@@ -21,8 +21,8 @@ from pathlib import Path
 from .cache import atomic_dir, cache_root, link_or_copy, world_readable
 
 __all__ = ["Runtime", "allowed_packages", "filtered_packages", "package_dir", "package_entries",
-           "locate_module", "mirror_site", "project_root", "python_runtime", "runner_dir", "site_dirs",
-           "stub_dir"]
+           "locate_module", "mirror_site", "project_root", "pth_dirs", "python_runtime", "runner_dir",
+           "site_dirs", "stub_dir"]
 
 
 @functools.lru_cache(maxsize=64)
@@ -307,8 +307,19 @@ def _allowed_packages(allowed: tuple[str, ...], state: tuple[int, ...]) -> tuple
 
 def package_entries(site: str, packages: Sequence[str]) -> list[str]:
     """The entries of the site-packages folder ``site`` that the top-level ``packages`` consist of:
-    the package folders or modules, their distributions' bundled libraries (``numpy.libs``,
-    ``scipy.libs``) and other top-level files those distributions installed there."""
+    the package folders or modules and every other top-level entry their distributions installed
+    (the bundled libraries ``numpy.libs``, ``scipy.libs``; the ``.dist-info`` folders, which
+    ``importlib.metadata`` reads; ``.pth`` files and single modules).
+
+    An entry is the first part of an installed file's path below the folder its distribution was
+    installed in, so ``site`` may be that folder or a mirror of it (:func:`mirror_site`: the same
+    names in another folder); only the names present in ``site`` are returned.
+
+    >>> site = site_dirs()[0]
+    >>> {"numpy", "numpy.libs"} & set(package_entries(site, ["numpy"])) == {"numpy", "numpy.libs"} & {
+    ...     e for e in os.listdir(site)}
+    True
+    """
     return list(_package_entries(str(site), tuple(packages), _site_state()))
 
 
@@ -317,44 +328,61 @@ def _package_entries(site: str, packages: tuple[str, ...], state: tuple[int, ...
     import importlib.metadata as md
 
     by_top = _distributions(state)
-    root = Path(site).resolve()
+    root = Path(site)
     names: set[str] = set()
-
-    def add(p: Path) -> None:  # a resolved path: the entry of ``root`` it lies in
-        if p.is_relative_to(root) and p != root:
-            first = p.relative_to(root).parts[0]
-            if not first.endswith((".dist-info", ".egg-info")) and first != "__pycache__":
-                names.add(first)
-
     for top in packages:
-        for cand in (top, f"{top}.py"):
-            if (root / cand).exists():
-                names.add(cand)
+        names.update((top, f"{top}.py"))
         for dist_name in by_top.get(top, []):
             try:
                 dist = md.distribution(dist_name)
-            except md.PackageNotFoundError:
-                continue
-            try:
                 base = Path(dist.locate_file("")).resolve()
-            except (OSError, RuntimeError):
+            except (md.PackageNotFoundError, OSError, RuntimeError):
                 continue
-            # A file's entry is the first part of its path below the distribution's folder; only
-            # that entry is resolved (a distribution has thousands of files, a few entries), and
-            # paths leaving the folder ("../") are resolved whole.
-            firsts: set[str] = set()
             for f in dist.files or ():
                 parts = Path(f).parts
-                if parts and parts[0] != ".." and base == root:
-                    firsts.add(parts[0])
+                if not parts:
                     continue
-                try:
-                    add(Path(dist.locate_file(f)).resolve())
-                except (OSError, RuntimeError):
+                if parts[0] == "..":  # e.g. ../../../bin/f2py: outside, unless it comes back in
+                    try:
+                        p = (base / f).resolve()
+                    except (OSError, RuntimeError):
+                        continue
+                    if not p.is_relative_to(base) or p == base:
+                        continue
+                    parts = p.relative_to(base).parts
+                names.add(parts[0])
+    names.discard("__pycache__")
+    return tuple(sorted(n for n in names if os.path.lexists(root / n)))
+
+
+def pth_dirs(sites: Sequence[str]) -> list[str]:
+    """The folders the ``.pth`` files of ``sites`` put on ``sys.path`` (lines that are folders;
+    ``import`` lines are code and not followed), existing ones, in order, without the ``sites``
+    themselves: the sandbox's child runs with ``-S`` and never reads a ``.pth`` file, so a package
+    installed in such a folder (a wheel that puts its modules in a sub-folder, an editable install)
+    is importable there only when the folder is given to it too.
+
+    >>> pth_dirs([])
+    []
+    """
+    out: list[str] = []
+    seen = {str(Path(s).resolve()) for s in sites}
+    for site in sites:
+        try:
+            pths = sorted(e.name for e in os.scandir(site) if e.name.endswith(".pth") and e.is_file())
+        except OSError:
+            continue
+        for name in pths:
+            try:
+                lines = Path(site, name).read_text(encoding="utf-8", errors="replace").splitlines()
+            except OSError:
+                continue
+            for line in lines:
+                line = line.strip()
+                if not line or line.startswith(("#", "import ", "import\t")):
                     continue
-            for first in firsts:
-                try:
-                    add((root / first).resolve())
-                except (OSError, RuntimeError):
-                    continue
-    return tuple(sorted(n for n in names if (root / n).exists()))
+                folder = Path(site, line).resolve()  # relative lines are relative to the site
+                if folder.is_dir() and str(folder) not in seen:
+                    seen.add(str(folder))
+                    out.append(str(folder))
+    return out

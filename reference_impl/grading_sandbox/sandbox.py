@@ -47,6 +47,7 @@ from .runtime import (
     mirror_site,
     package_dir,
     project_root,
+    pth_dirs,
     python_runtime,
     runner_dir,
     site_dirs,
@@ -55,7 +56,7 @@ from .seccomp import preexec_installer, seccomp_status
 from .seccomp import program as seccomp_program
 from .wire import Call, Outcome, is_plain, to_wire
 
-__all__ = ["Sandbox"]
+__all__ = ["Sandbox", "SandboxConfigError"]
 
 #: the package itself: never importable by student code
 _OWN = __name__.partition(".")[0]
@@ -66,6 +67,21 @@ _DEFAULT_LIMITS = Limits()  # a frozen dataclass: immutable
 
 class _ChildGone(Exception):
     """The child cannot answer any more; ``args[0]`` is the message for the unanswered calls."""
+
+
+class SandboxConfigError(RuntimeError):
+    """The sandbox's Python cannot import numpy or a module its allowlist names.
+
+    The child tries those imports before any student code runs, so this is never the student's
+    doing: it is the grader's environment (a package the sandbox's view lacks, a library that does
+    not load). A grader reports it once, with the fix in the message, instead of scoring the
+    student. ``module`` is what failed to import, ``error`` the child's exception.
+    """
+
+    def __init__(self, message: str, module: str = "", error: str = "") -> None:
+        super().__init__(message)
+        self.module = module
+        self.error = error
 
 
 # --------------------------------------------------------------------------------------------------
@@ -262,7 +278,8 @@ class Sandbox:
         # the cached copies are marked as used at every start (see the cache's docstring)
         runtime = live_copy(python_runtime, self._uid is not None,
                             where=lambda r: Path(r.source) if r.lib_dir is not None else None)
-        sites = site_dirs()
+        real_sites = site_dirs()
+        sites = [*real_sites, *self._pth_sites(real_sites)]
         if self._uid is not None:
             leave_out = (*self.packages, *self.private)
             sites = [d if world_readable(Path(d)) else str(mirror_site(Path(d), leave_out)) for d in sites]
@@ -297,7 +314,7 @@ class Sandbox:
                "PATH": "/usr/bin:/bin"}
         stdlib = runtime.stdlib if self._mode == "fallback" else python_runtime(False).stdlib
         view = View(runtime, tuple(sites), self._packages, lib_root, runner, self.packages,
-                    tuple(self._blocked_locations([*stdlib, *sites])), self._hidden(sites))
+                    tuple(self._blocked_locations([*stdlib, *sites])), self._hidden(real_sites))
         if self._mode == "bwrap":
             cmd, init = bwrap_command(view, _bwrap_path() or "bwrap", env, self.limits.disk_bytes)
         else:
@@ -309,6 +326,42 @@ class Sandbox:
             init["allowed"] = list(self._packages)
             init["allowed_text"] = ", ".join(self.allowed or ())
         return cmd, env, init, workdir
+
+    def _pth_sites(self, sites: Sequence[str]) -> list[str]:
+        """The folders the ``.pth`` files of ``sites`` add (:func:`.runtime.pth_dirs`), for the
+        packages installed there; a folder holding an exposed or a private package (the source
+        checkout of an editable install) is left out: those come from their filtered copies, or never.
+        """
+        own = (*self.packages, *self.private)
+        return [d for d in pth_dirs(sites) if not any((Path(d) / name).exists() for name in own)]
+
+    def _probe_modules(self) -> list[str]:
+        """What the child imports before any student code (numpy always): the allowlist's modules
+        that are not blocked. Failing to import one is the grader's configuration error."""
+        names = ["numpy", *(self.allowed or ())]
+        blocked = self.blocked
+        return [n for n in dict.fromkeys(names)
+                if not any(n == b or n.startswith(b + ".") for b in blocked)]
+
+    def _config_error(self, reply: dict) -> SandboxConfigError:
+        """The :class:`SandboxConfigError` of a child's ``config-error`` reply, with the fix."""
+        module = str(reply.get("module", ""))[:200]
+        error = str(reply.get("error", ""))[:1500]
+        if self._uid is not None:
+            fix = ("the grader runs as root, so student code runs as an unprivileged uid that sees a "
+                   "world-readable mirror of the packages it cannot read (in the sandbox cache, "
+                   f"{self._cache}). Make the Python environment readable by other users (chmod -R a+rX "
+                   "on the virtual environment, chmod o+x on the folders above it) or grade as an "
+                   "ordinary user; if it persists, delete the cache folder and report this message")
+        else:
+            fix = ("the sandbox's Python sees only the packages the allowlist needs, without .pth files "
+                   "(python -I -S): reinstall the package (pip install --force-reinstall), check that "
+                   "`python -I -S -c 'import " + (module or "numpy") + "'` works with site-packages on "
+                   "PYTHONPATH, and report this message if it persists")
+        msg = (f"grader configuration error: the sandbox's Python cannot import {module or 'numpy'} "
+               f"({self.isolation} sandbox), which the exercise allows: {error.strip()}. This is not the "
+               f"student's work (nothing of it had run yet). Fix: {fix}.")
+        return SandboxConfigError(msg, module, error)
 
     def _hidden(self, sites: Sequence[str]) -> tuple[str, ...]:
         """What the fallback's audit hook refuses: the real folders of the exposed and private
@@ -373,7 +426,7 @@ class Sandbox:
             init = self._inits[view] = self._command(launch=False)[2]
         init = dict(init)
         init.update(op="init", nproc=self._nproc_child, blocked=list(self.blocked), cells=self.cells,
-                    allow_spawn=self.spawn)
+                    allow_spawn=self.spawn, probe=self._probe_modules())
         self._cpu_used = 0.0
         deadline = time.monotonic() + timeout
         try:
@@ -385,6 +438,10 @@ class Sandbox:
         except _ChildGone:
             self._kill()
             raise
+        if isinstance(reply, dict) and reply.get("op") == "config-error":
+            error = self._config_error(reply)
+            self._kill()
+            raise error
         errors = reply.get("cell_errors") if isinstance(reply, dict) else None
         if not isinstance(errors, dict) or reply.get("op") != "ready":
             self._kill()
@@ -463,6 +520,10 @@ class Sandbox:
         except _ChildGone:
             self._kill()
             raise
+        if isinstance(reply, dict) and reply.get("op") == "config-error":
+            error = self._config_error(reply)
+            self._kill()
+            raise error
         if not (isinstance(reply, dict) and reply.get("op") == "zygote-ready"):
             self._kill()
             raise _ChildGone("the sandbox sent an invalid start-up reply")

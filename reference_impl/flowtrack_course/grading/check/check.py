@@ -12,6 +12,8 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
+from grading_sandbox import SandboxConfigError
+
 from ..engine.results import ExerciseResult
 from ..engine.run import run_exercise
 
@@ -57,7 +59,8 @@ def check_notebook(
     The exercise is looked up in the course folder ``course`` (else ``$FLOWTRACK_COURSE``, else the
     current folder, else the folder above ``notebook`` that holds ``exercises/``:
     :func:`~flowtrack_course.grading.sources.course_near`). Returns the exit status: 0 when every
-    public test passes, 1 otherwise.
+    public test passes, 1 otherwise, 3 when the sandbox cannot import what the exercise allows (the
+    installation's problem, printed with the fix instead of a score).
 
     Raises
     ------
@@ -91,7 +94,11 @@ def check_notebook(
             raise ValueError(f"notebook: {path.name} is not one of the course's exercises ({exc})") from None
         exercise, renamed_note = found
     options = GradingOptions().hiding(catalog.root)
-    result = run_exercise(exercise, path, None, public_only=True, options=options)
+    try:
+        result = run_exercise(exercise, path, None, public_only=True, options=options)
+    except SandboxConfigError as exc:  # the installation, not the student's work: no score at all
+        print(f"{exercise.id}: NOT CHECKED\n\n{exc}", file=stream)
+        return 3
     hidden = sum(float(t.points) for t in exercise.tests if t.hidden)
     print(format_report(result, hidden), file=stream)
     if result.isolation.startswith("fallback"):

@@ -30,7 +30,7 @@ from flowtrack.validation import positive_int
 
 from .jobs import ClassJob, StudentJob
 from .results import round_score, write_atomic
-from .run import preload_modules
+from .run import check_environment, preload_modules
 from .spec import Exercise
 from .student import exercises_hash, grade_student
 
@@ -41,6 +41,7 @@ __all__ = [
     "close_shared_pools",
     "list_students",
     "run_class",
+    "uniform_failures",
 ]
 
 # What a class run writes into its output folder beside the student folders: a student folder of one
@@ -116,11 +117,15 @@ class _Task:
 def _grade(job: StudentJob) -> dict:
     """Grade one student; an error is reported in the summary (the class goes on) and leaves no
     results.json of an earlier run standing for this one."""
+    from grading_sandbox import SandboxConfigError
+
     try:
         pool = None
         if job.options.reuse_sandboxes and job.options.sandbox_factory is None:
             pool = _shared_pool(preload_modules(job.exercises))
         return grade_student(job, sandbox_pool=pool)
+    except SandboxConfigError as exc:  # the grader's environment: reported once for the class
+        return {"student": job.student, "error": str(exc), "config_error": True}
     except Exception as exc:
         try:
             (Path(job.out) / job.student / "results.json").unlink(missing_ok=True)
@@ -233,6 +238,9 @@ def run_class(job: ClassJob) -> tuple[list[dict], tuple[Exercise, ...], list[str
     students = list_students(job.submissions)
     if options.sandbox_factory is None:
         _check_isolation(job, private, len(students))
+        # before any student: a sandbox that cannot import what an exercise allows would score
+        # every student 0 on it (grading_sandbox.SandboxConfigError, raised with the fix)
+        check_environment(exercises, options)
     job.out.mkdir(parents=True, exist_ok=True)
     ex_hash = exercises_hash(exercises)
     reserved = [s for s in students if s.lower() in RESERVED_NAMES]
@@ -259,11 +267,33 @@ def run_class(job: ClassJob) -> tuple[list[dict], tuple[Exercise, ...], list[str
     isolations = {r.get("isolation", "") for r in rows}
     for iso in sorted(i for i in isolations if i.startswith("fallback")):
         log(f"warning: sandbox isolation is {iso!r}: student code ran without the full bubblewrap sandbox")
+    config = [r for r in rows if r.get("config_error")]
+    if config:  # the same for everyone: said once, loudly
+        who = ", ".join(r["student"] for r in config[:5]) + (" ..." if len(config) > 5 else "")
+        log(f"error: {config[0]['error']}\n(not graded: {len(config)} student(s): {who}; fix the grader's "
+            "environment and re-run grade)")
     for r in rows:
-        if "error" in r:
+        if "error" in r and not r.get("config_error"):
             log(f"error: student {r['student']}: {r['error']} (scored 0; re-run grade to retry)")
     _write_grades_csv(job.out / "grades.csv", rows, exercises)
     return rows, exercises, students
+
+
+def uniform_failures(rows: Sequence[dict], exercises: Sequence[Exercise], least: int = 2) -> list[str]:
+    """One line per exercise that every student who submitted it (at least ``least`` of them)
+    failed in exactly the same way (:func:`~.student.failure_signature`): students' own mistakes
+    differ, so this is the grader's environment or the exercise's definition, not their work."""
+    out = []
+    for ex in exercises:
+        sigs = [r["failures"][ex.id] for r in rows if ex.id in (r.get("failures") or {})]
+        if len(sigs) >= least and sigs[0] and all(s == sigs[0] for s in sigs):
+            out.append(
+                f"every one of the {len(sigs)} students who submitted {ex.id} failed it the same way "
+                f"(0 points each): {sigs[0][:300]}. Students' own mistakes differ: check the grader's "
+                "environment (run `flowtrack check` on the exercise's solution) before publishing these "
+                "grades"
+            )
+    return out
 
 
 def _in_workers(jobs: list[StudentJob], catalog: Any, n_workers: int, bar) -> dict[str, dict]:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from grading_sandbox import Outcome
+from grading_sandbox import Outcome, SandboxConfigError
 from grading_sandbox.wire import is_plain
 
 from .feedback import apply_dependencies, cell_problems, explain_cascade, safe_text
@@ -35,7 +35,8 @@ from .seeds import public_seed, student_seed
 from .spec import Exercise, GradedTest
 from .text import clip_message
 
-__all__ = ["PRIVATE_PACKAGES", "catalogue_of", "preload_modules", "run_exercise", "warm_public_tests"]
+__all__ = ["PRIVATE_PACKAGES", "catalogue_of", "check_environment", "preload_modules", "run_exercise",
+           "sandbox_options", "warm_public_tests"]
 
 #: What student code may never import nor read, whatever the exercise: the grader's own package.
 PRIVATE_PACKAGES = (__name__.partition(".")[0],)
@@ -132,6 +133,50 @@ def preload_modules(exercises: Sequence[Exercise]) -> tuple[str, ...]:
     return tuple(dict.fromkeys(a for ex in exercises for a in (ex.allowed or ())))
 
 
+def sandbox_options(exercise: Exercise, options: GradingOptions | None = None) -> dict[str, Any]:
+    """The keyword arguments of the :class:`grading_sandbox.Sandbox` that runs ``exercise``'s cells."""
+    options = options if options is not None else GradingOptions()
+    kwargs: dict[str, Any] = {"blocked": tuple(exercise.blocked)}
+    if exercise.allowed:
+        kwargs["allowed"] = tuple(exercise.allowed)
+    if exercise.packages:
+        kwargs["packages"] = tuple(exercise.packages)
+    kwargs["private"] = PRIVATE_PACKAGES
+    if options.hidden_paths:
+        kwargs["hidden_paths"] = tuple(options.hidden_paths)
+    if options.limits is not None:
+        kwargs["limits"] = options.limits
+    if exercise.spawns:  # the exercise's own code builds and runs the answer (another language)
+        kwargs["spawn"] = True
+    return kwargs
+
+
+def check_environment(exercises: Sequence[Exercise], options: GradingOptions | None = None) -> int:
+    """Start, once per distinct sandbox the ``exercises`` need (their allowlists, blocked modules
+    and exposed packages), a child without student code: it imports numpy and every module the
+    allowlist names, as a student's would. Returns the number of sandboxes started.
+
+    Raises
+    ------
+    grading_sandbox.SandboxConfigError
+        A child cannot import one of them: the grader's environment is broken for that exercise (the
+        message has the fix), and grading it would give every student a 0 that is not theirs.
+    """
+    from grading_sandbox import Sandbox
+
+    options = options if options is not None else GradingOptions()
+    seen: set[tuple] = set()
+    for ex in exercises:
+        kwargs = sandbox_options(ex, options)
+        key = (kwargs.get("allowed"), kwargs["blocked"], kwargs.get("packages"), kwargs.get("spawn", False))
+        if key in seen:
+            continue
+        seen.add(key)
+        with Sandbox([], **kwargs) as box:
+            box.start()
+    return len(seen)
+
+
 def run_exercise(
     exercise: Exercise,
     notebook: str | os.PathLike,
@@ -164,6 +209,12 @@ def run_exercise(
     -------
     ExerciseResult
         One :class:`TestResult` per test run; never raises because of the submission.
+
+    Raises
+    ------
+    grading_sandbox.SandboxConfigError
+        The sandbox's Python cannot import what the exercise allows (before any student code ran):
+        the grader's configuration, which must not become the student's score.
     """
     if not isinstance(exercise, Exercise):
         raise TypeError(f"exercise must be an Exercise, got {type(exercise).__name__}")
@@ -179,18 +230,7 @@ def run_exercise(
     factory = options.sandbox_factory or sandbox_factory
     if factory is None:
         from grading_sandbox import Sandbox as factory
-    kwargs: dict[str, Any] = {"blocked": tuple(exercise.blocked)}
-    if exercise.allowed:
-        kwargs["allowed"] = tuple(exercise.allowed)
-    if exercise.packages:
-        kwargs["packages"] = tuple(exercise.packages)
-    kwargs["private"] = PRIVATE_PACKAGES
-    if options.hidden_paths:
-        kwargs["hidden_paths"] = tuple(options.hidden_paths)
-    if options.limits is not None:
-        kwargs["limits"] = options.limits
-    if exercise.spawns:  # the exercise's own code builds and runs the answer (another language)
-        kwargs["spawn"] = True
+    kwargs = sandbox_options(exercise, options)
     # Every public test runs before any hidden one: the child keeps state between tests, so a
     # public test run after a hidden one could carry the hidden inputs into its (shown) message.
     # Results are reported in the exercise's order.
@@ -212,6 +252,8 @@ def run_exercise(
                 continue
             try:
                 outcomes = list(box.run(list(calls), t.timeout))
+            except SandboxConfigError:  # the grader's environment, not the student: never a score
+                raise
             except Exception as exc:  # the sandbox reports, never stops the run
                 outcomes = [Outcome(False, None, f"sandbox error: {exc}") for _ in calls]
             if len(outcomes) != len(calls):

@@ -19,6 +19,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from grading_sandbox import SandboxConfigError
+
 from .jobs import StudentJob
 from .results import (
     ExerciseResult,
@@ -34,6 +36,7 @@ from .spec import Exercise
 
 __all__ = [
     "exercises_hash",
+    "failure_signature",
     "grade_student",
     "locate_notebook",
     "locate_notebooks",
@@ -154,6 +157,21 @@ def submission_hash(notebooks: dict[str, Path]) -> str:
     return h.hexdigest()
 
 
+def failure_signature(result: ExerciseResult) -> str:
+    """How an exercise failed, in words that do not depend on the student's hidden inputs when the
+    cause is not the student's answer: "" when a test earned points or the answer is the released
+    stub (``NotImplementedError``), else the sorted distinct problems and hidden-safe messages.
+
+    Every student of a class failing an exercise with the same signature points at the grader's
+    environment (a sandbox that cannot start, a library it cannot load), not at their work.
+    """
+    if result.score > 0 or not result.tests:
+        return ""
+    texts = [*result.problems, *(t.safe_message or t.message for t in result.tests)]
+    sig = " | ".join(sorted(set(texts)))
+    return "" if "NotImplementedError" in sig else sig[:500]
+
+
 def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
     """Grade one student's folder; write ``out/<student>/feedback/*`` then ``results.json``.
 
@@ -168,7 +186,15 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
     Returns
     -------
     dict
-        ``{"student", "skipped", "score", "max_score", "exercises": {id: score}, "isolation"}``.
+        ``{"student", "skipped", "score", "max_score", "exercises": {id: score}, "isolation",
+        "failures": {id: signature}}`` (``failures``: the exercises the student submitted, with
+        :func:`failure_signature`, "" where it earned points).
+
+    Raises
+    ------
+    grading_sandbox.SandboxConfigError
+        The sandbox cannot import what an exercise allows: the grader's environment (nothing is
+        written for this student).
     """
     from .seeds import secret_id
 
@@ -196,6 +222,7 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
                     "max_score": float(info["max_score"]),
                     "exercises": {k: v["score"] for k, v in info["exercises"].items()},
                     "isolation": info.get("isolation", ""),
+                    "failures": dict(info.get("failures") or {}),
                 }
     results_path.unlink(missing_ok=True)
     results = []
@@ -212,6 +239,8 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
         for ex in exercises:
             try:
                 r = run_exercise(ex, notebooks[ex.id], job.student, options=options, sandbox_factory=factory)
+            except SandboxConfigError:  # the grader's environment: no results for this student
+                raise
             except Exception as exc:  # one broken exercise must not lose the others
                 r = ExerciseResult(ex.id, ex.title, ex.notebook)
                 r.problems.append(f"internal grader error: {type(exc).__name__}: {exc}")
@@ -224,6 +253,7 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
             pool.close()
     isolation = next((r.isolation for r in results if r.isolation.startswith("fallback")), "")
     isolation = isolation or next((r.isolation for r in results if r.isolation), "")
+    failures = {r.exercise_id: failure_signature(r) for r in results if notebooks[r.exercise_id].is_file()}
     data = results_json(
         job.student,
         results,
@@ -233,6 +263,7 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
             "submission_hash": sub_hash,
             "secret_id": key_id,
             "isolation": isolation,
+            "failures": failures,
         },
     )
     for r in results:
@@ -245,4 +276,5 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
         "max_score": data["extra_data"]["flowtrack"]["max_score"],
         "exercises": {r.exercise_id: round_score(r.score) for r in results},
         "isolation": isolation,
+        "failures": failures,
     }

@@ -12,7 +12,10 @@ gradebook (:mod:`..export.gradebook`). :func:`run_grade` is the command around i
    ``lms`` ``OUT/canvas.csv`` or ``OUT/moodle.csv`` (:mod:`..export.lms`).
 
 A run that grades no student (no student folder, or no folder holding any expected notebook) ends
-with exit status 2 and the reason; an error grading a student gives 1.
+with exit status 2 and the reason; an error grading a student gives 1; a grader whose sandbox cannot
+import what an exercise allows (checked before any student is graded:
+:func:`~..engine.run.check_environment`), or a class whose every student failed an exercise the same
+way (:func:`~..engine.classrun.uniform_failures`), gives 3 and says so.
 """
 
 from __future__ import annotations
@@ -22,7 +25,9 @@ import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..engine.classrun import run_class
+from grading_sandbox import SandboxConfigError
+
+from ..engine.classrun import run_class, uniform_failures
 from ..engine.jobs import ClassJob
 
 __all__ = ["GradeRun", "grade_class", "run_grade"]
@@ -130,7 +135,10 @@ def run_grade(
         force=job.options.force,
     )
     job = replace(job, exercises=exercises, renamed=renamed, log=log)
-    rows = grade_class(job, assignment=assignment, roster=roster_map)
+    try:
+        rows = grade_class(job, assignment=assignment, roster=roster_map)
+    except SandboxConfigError as exc:  # found before any student was graded
+        return GradeRun(3, reason=f"{exc}\n(graded no student: nothing was written)")
     out = job.out
     files = {"grades": out / "grades.csv", "gradebook": out / "gradebook.db"}
     files["misconceptions"], files["class_report"] = write_class_outputs(out, rows, exercises)
@@ -163,6 +171,9 @@ def run_grade(
             + ", ".join(empty[:10])
         )
     summary.append(f"wrote {files['misconceptions']} and {files['class_report']}")
+    uniform = uniform_failures(rows, exercises)
+    summary += [f"error: {line}" for line in uniform]
+    config = any(r.get("config_error") for r in rows)
     if lms:
         from ..export.lms import export_lms
 
@@ -181,4 +192,5 @@ def run_grade(
         unknown = [r["student"] for r in rows if r["student"] not in roster_map]
         if unknown:
             summary.append(f"warning: {len(unknown)} student(s) not in the roster: {', '.join(unknown[:10])}")
-    return GradeRun(1 if errors else 0, rows, summary, "", reasons, files)
+    status = 3 if (uniform or config) else 1 if errors else 0
+    return GradeRun(status, rows, summary, "", reasons, files)

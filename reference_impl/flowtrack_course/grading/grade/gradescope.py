@@ -99,7 +99,13 @@ def run_submission(
         if summary.get("isolation", "").startswith("fallback"):
             data["output"] += f"\n(sandbox isolation: {summary['isolation']})"
     except Exception as exc:  # Gradescope must get a results.json
-        data = {"score": 0.0, "output": f"autograder error: {type(exc).__name__}: {exc}", "tests": []}
+        from grading_sandbox import SandboxConfigError
+
+        if isinstance(exc, SandboxConfigError):  # the autograder's image, not the student's work
+            message = f"autograder configuration error: {exc}"
+        else:
+            message = f"autograder error: {type(exc).__name__}: {exc}"
+        data = _error_data(message)
     write_atomic(results, json.dumps(data, indent=1))
     return data
 
@@ -176,11 +182,11 @@ def _isolation_problem(protect: list[Path], allow_unsafe: bool) -> str:
     return ""
 
 
-def _error_result(results: str | os.PathLike, message: str) -> int:
-    """Write a Gradescope error result (score 0, the message shown) and return exit status 1."""
-    from ..engine.results import FORMAT, write_atomic
+def _error_data(message: str) -> dict:
+    """A Gradescope error result: score 0, the message shown, said not to be the student's doing."""
+    from ..engine.results import FORMAT
 
-    data = {
+    return {
         "score": 0.0,
         "output": message + "\nThis is not a problem with your work; please tell your instructor.",
         "visibility": "visible",
@@ -188,7 +194,13 @@ def _error_result(results: str | os.PathLike, message: str) -> int:
         "tests": [],
         "extra_data": {"flowtrack": {"format": FORMAT, "error": message}},
     }
-    write_atomic(Path(results), json.dumps(data, indent=1))
+
+
+def _error_result(results: str | os.PathLike, message: str) -> int:
+    """Write a Gradescope error result (score 0, the message shown) and return exit status 1."""
+    from ..engine.results import write_atomic
+
+    write_atomic(Path(results), json.dumps(_error_data(message), indent=1))
     print(f"flowtrack autograder: {message}", file=sys.stderr)
     return 1
 
