@@ -514,7 +514,7 @@ def test_gradescope_zip_runs_the_same_grader(tmp_path):
     setup = (unpacked / "setup.sh").read_text()
     assert "bubblewrap" in setup
     # student code runs as an unprivileged uid: it must be able to read the venv (numpy)
-    assert "chmod -R a+rX /autograder/venv" in setup
+    assert 'chmod -R a+rX "$ROOT/venv"' in setup and 'ROOT="${AUTOGRADER_ROOT:-/autograder}"' in setup
     for script in ("setup.sh", "run_autograder"):
         subprocess.run(["bash", "-n", str(unpacked / script)], check=True)  # valid bash
     # a fake /autograder: the grader comes from the zip's source tree, not from this checkout

@@ -410,7 +410,7 @@ def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
                 "libgoogle-gson-java", "libejml-java"):
         assert f" {pkg} " in f" {apt} "  # the bundle's image gets the toolchains from Debian
     # and Mathics3 through the grader requirements the bundle installs (flowtrack itself --no-deps)
-    assert "pip install -q -r /autograder/source/requirements-grader.txt" in SETUP_SH
+    assert 'pip" install -q -r "$ROOT/source/requirements-grader.txt"' in SETUP_SH
     reqs = [re.split(r"[<>=!~;\[ ]", r, maxsplit=1)[0].lower() for r in grader_requirements(REPO).split("\n")]
     assert "mathics3" in reqs
     ex = _ex("octave", "cv_model")

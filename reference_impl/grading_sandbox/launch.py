@@ -1,5 +1,6 @@
 """What a new child sees and how it is started: the bubblewrap command line (a fresh root of
-read-only binds and two bounded tmpfs) or the fallback's command and deny list.
+read-only binds and two bounded tmpfs) or the fallback's command and deny list; and the error of a
+child whose view lacks what its allowlist names (:class:`SandboxConfigError`).
 
 Both functions are pure: they turn a :class:`View` (what the sandbox holds for this exercise) into
 the command and the init message the runner (``_child.py``) receives; :class:`~.sandbox.Sandbox`
@@ -18,7 +19,7 @@ from . import config
 from .isolation import bwrap_base, setpriv_command
 from .runtime import Runtime, package_entries, stub_dir
 
-__all__ = ["HOME", "OPT", "View", "bwrap_command", "fallback_command"]
+__all__ = ["HOME", "OPT", "SandboxConfigError", "View", "bwrap_command", "config_error", "fallback_command"]
 
 #: the student's HOME (and cwd) inside bubblewrap
 HOME = "/home/student"
@@ -111,3 +112,39 @@ def fallback_command(view: View, workdir: Path, uid: int | None, setpriv: bool,
             "write_root": str(workdir),
             "allow_paths": [*lib, *view.sites, *stdlib, str(view.runner)]}
     return cmd, init
+
+
+class SandboxConfigError(RuntimeError):
+    """The sandbox's Python cannot import numpy or a module its allowlist names.
+
+    The child tries those imports before any student code runs, so this is never the student's
+    doing: it is the grader's environment (a package the sandbox's view lacks, a library that does
+    not load). A grader reports it once, with the fix in the message, instead of scoring the
+    student. ``module`` is what failed to import, ``error`` the child's exception.
+    """
+
+    def __init__(self, message: str, module: str = "", error: str = "") -> None:
+        super().__init__(message)
+        self.module = module
+        self.error = error
+
+
+def config_error(reply: dict, isolation: str, as_root: bool, cache: Path) -> SandboxConfigError:
+    """The :class:`SandboxConfigError` of a child's ``config-error`` reply, with the fix."""
+    module = str(reply.get("module", ""))[:200] or "numpy"
+    error = str(reply.get("error", ""))[:1500].strip()
+    if as_root:
+        fix = ("the grader runs as root, so student code runs as an unprivileged uid that sees a "
+               "world-readable mirror of the packages it cannot read (in the sandbox cache, "
+               f"{cache}). Make the Python environment readable by other users (chmod -R a+rX on the "
+               "virtual environment, chmod o+x on the folders above it) or grade as an ordinary user; "
+               "if it persists, delete the cache folder and report this message")
+    else:
+        fix = ("the sandbox's Python sees only the packages the allowlist needs, without .pth files "
+               "(python -I -S): reinstall the package (pip install --force-reinstall), check that "
+               f"`python -I -S -c 'import {module}'` works with site-packages on PYTHONPATH, and report "
+               "this message if it persists")
+    msg = (f"grader configuration error: the sandbox's Python cannot import {module} ({isolation} "
+           f"sandbox), which the exercise allows: {error}. This is not the student's work (nothing of "
+           f"it had run yet). Fix: {fix}.")
+    return SandboxConfigError(msg, module, error)

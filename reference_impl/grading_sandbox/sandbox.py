@@ -38,7 +38,7 @@ from .isolation import (
     user_tasks,
 )
 from .isolation import bwrap_path as _bwrap_path
-from .launch import HOME, View, bwrap_command, fallback_command
+from .launch import HOME, SandboxConfigError, View, bwrap_command, config_error, fallback_command
 from .limits import Limits
 from .runtime import (
     allowed_packages,
@@ -67,21 +67,6 @@ _DEFAULT_LIMITS = Limits()  # a frozen dataclass: immutable
 
 class _ChildGone(Exception):
     """The child cannot answer any more; ``args[0]`` is the message for the unanswered calls."""
-
-
-class SandboxConfigError(RuntimeError):
-    """The sandbox's Python cannot import numpy or a module its allowlist names.
-
-    The child tries those imports before any student code runs, so this is never the student's
-    doing: it is the grader's environment (a package the sandbox's view lacks, a library that does
-    not load). A grader reports it once, with the fix in the message, instead of scoring the
-    student. ``module`` is what failed to import, ``error`` the child's exception.
-    """
-
-    def __init__(self, message: str, module: str = "", error: str = "") -> None:
-        super().__init__(message)
-        self.module = module
-        self.error = error
 
 
 # --------------------------------------------------------------------------------------------------
@@ -344,24 +329,7 @@ class Sandbox:
                 if not any(n == b or n.startswith(b + ".") for b in blocked)]
 
     def _config_error(self, reply: dict) -> SandboxConfigError:
-        """The :class:`SandboxConfigError` of a child's ``config-error`` reply, with the fix."""
-        module = str(reply.get("module", ""))[:200]
-        error = str(reply.get("error", ""))[:1500]
-        if self._uid is not None:
-            fix = ("the grader runs as root, so student code runs as an unprivileged uid that sees a "
-                   "world-readable mirror of the packages it cannot read (in the sandbox cache, "
-                   f"{self._cache}). Make the Python environment readable by other users (chmod -R a+rX "
-                   "on the virtual environment, chmod o+x on the folders above it) or grade as an "
-                   "ordinary user; if it persists, delete the cache folder and report this message")
-        else:
-            fix = ("the sandbox's Python sees only the packages the allowlist needs, without .pth files "
-                   "(python -I -S): reinstall the package (pip install --force-reinstall), check that "
-                   "`python -I -S -c 'import " + (module or "numpy") + "'` works with site-packages on "
-                   "PYTHONPATH, and report this message if it persists")
-        msg = (f"grader configuration error: the sandbox's Python cannot import {module or 'numpy'} "
-               f"({self.isolation} sandbox), which the exercise allows: {error.strip()}. This is not the "
-               f"student's work (nothing of it had run yet). Fix: {fix}.")
-        return SandboxConfigError(msg, module, error)
+        return config_error(reply, self.isolation, self._uid is not None, self._cache)
 
     def _hidden(self, sites: Sequence[str]) -> tuple[str, ...]:
         """What the fallback's audit hook refuses: the real folders of the exposed and private

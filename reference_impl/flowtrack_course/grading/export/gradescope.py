@@ -35,40 +35,50 @@ from ..engine.discovery import EXERCISES_DIR, exercise_folders, grading_files
 
 __all__ = ["PACKAGES", "RUN_AUTOGRADER", "SETUP_SH", "build_autograder", "grader_requirements"]
 
-SETUP_SH = """\
-#!/usr/bin/env bash
-# Gradescope runs this once, as root, when the autograder image is built.
+SETUP_SH = r"""#!/usr/bin/env bash
+# Gradescope runs this once, as root, when the autograder image is built (AUTOGRADER_ROOT moves
+# /autograder elsewhere, to try the bundle outside Gradescope).
 set -euo pipefail
+ROOT="${AUTOGRADER_ROOT:-/autograder}"
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq
 apt-get install -y -qq python3 python3-venv python3-pip bubblewrap util-linux
 # the toolchains of answers in C++, Octave and Java (Mathematica answers: mathics3, in the grader extra)
 apt-get install -y -qq g++ libeigen3-dev nlohmann-json3-dev octave openjdk-17-jdk-headless \
     libgoogle-gson-java libejml-java
-python3 - <<'EOF'
+python3 - <<'PY'
 import sys
 if sys.version_info < (3, 11):
     sys.exit(f"flowtrack needs Python >= 3.11, this image has {sys.version.split()[0]}: "
              "choose the Ubuntu 24.04 base image")
-EOF
-python3 -m venv /autograder/venv
-/autograder/venv/bin/pip install -q --upgrade pip
+PY
+python3 -m venv "$ROOT/venv"
+"$ROOT/venv/bin/pip" install -q --upgrade pip
 # Only what grading imports (pyproject's `grader` extra, pinned in requirements-grader.txt): no open3d,
 # scikit-image or Jupyter; then flowtrack itself without its dependencies.
-/autograder/venv/bin/pip install -q -r /autograder/source/requirements-grader.txt
-/autograder/venv/bin/pip install -q --no-deps "/autograder/source/flowtrack"
+"$ROOT/venv/bin/pip" install -q -r "$ROOT/source/requirements-grader.txt"
+"$ROOT/venv/bin/pip" install -q --no-deps "$ROOT/source/flowtrack"
 # Student code runs as a fresh unprivileged uid per sandbox: under bubblewrap where it can create
 # namespaces, else (Docker's default seccomp profile) switched to with setpriv (util-linux), no
 # capabilities, no_new_privs. That uid needs the Python runtime and numpy/scipy of the venv, and
-# nothing of the grader: the installed packages (the library, of which the sandbox gets a filtered
-# copy; the grader; the sandbox, whose runner the sandbox gets a copy of) and /autograder/source
-# (the key, and the course's exercise grading modules in course/) are the grader's only.
-chmod o+x /autograder
-chmod -R a+rX /autograder/venv
-PKG_DIRS="$(/autograder/venv/bin/python -c 'import os, flowtrack, flowtrack_course, grading_sandbox as s
-print("\n".join(os.path.dirname(m.__file__) for m in (flowtrack, flowtrack_course, s)))')"
-while IFS= read -r d; do chmod -R go-rwx "$d"; done <<< "$PKG_DIRS"
-chmod -R go-rwx /autograder/source
+# nothing of the grader: every top-level entry the flowtrack distribution installed (the library, of
+# which the sandbox gets a filtered copy; the grader; the sandbox, whose runner the sandbox gets a
+# copy of; their metadata) and $ROOT/source (the key, and the course's exercise grading modules in
+# course/) are the grader's only. run_autograder refuses to grade while the sandbox could read them.
+chmod o+x "$ROOT"
+chmod -R a+rX "$ROOT/venv"
+"$ROOT/venv/bin/python" - > "$ROOT/.flowtrack-private" <<'PY'
+import importlib.metadata as md
+from pathlib import Path
+
+dist = md.distribution("flowtrack")
+site = Path(dist.locate_file("")).resolve()
+entries = {Path(f).parts[0] for f in dist.files or () if Path(f).parts and Path(f).parts[0] != ".."}
+print("\n".join(str(site / e) for e in sorted(entries) if (site / e).exists()))
+PY
+while IFS= read -r d; do chmod -R go-rwx "$d"; done < "$ROOT/.flowtrack-private"
+rm -f "$ROOT/.flowtrack-private"
+chmod -R go-rwx "$ROOT/source"
 """
 
 RUN_AUTOGRADER = r"""#!/usr/bin/env bash

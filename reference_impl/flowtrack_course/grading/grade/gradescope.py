@@ -145,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # an explicit error result, never no results.json
         return _error_result(args.results, f"autograder configuration error: {type(exc).__name__}: {exc}")
     protect = [Path(args.results).resolve().parent, catalog.root / "exercises",
-               *(Path(f) for f in (args.secret_file, args.metadata) if f)]
+               *(Path(f) for f in (args.secret_file, args.metadata) if f), *_grader_packages()]
     problem = _isolation_problem([p for p in protect if p.exists()], args.allow_unsafe_sandbox)
     if problem:
         return _error_result(args.results, problem)
@@ -178,8 +178,26 @@ def _isolation_problem(protect: list[Path], allow_unsafe: bool) -> str:
         exposed = readable_by_sandbox(protect)
         if exposed:
             return ("autograder configuration error: the sandbox's unprivileged uid could read "
-                    + ", ".join(map(str, exposed)) + " (run_autograder makes them private: chmod go-rwx)")
+                    + ", ".join(map(str, exposed)) + " (setup.sh makes the installed packages private and "
+                    "run_autograder the rest: chmod -R go-rwx " + " ".join(map(str, exposed)) + ")")
     return ""
+
+
+def _grader_packages() -> list[Path]:
+    """The folders of the packages this grader runs from (the library, the grader, the sandbox):
+    student code gets copies of what it may see, never these (they hold the reference code of the
+    blocked modules and the grader's own)."""
+    from grading_sandbox.runtime import package_dir
+
+    from ..export.gradescope import PACKAGES
+
+    out = []
+    for name in PACKAGES:
+        try:
+            out.append(package_dir(name))
+        except ValueError:
+            continue
+    return out
 
 
 def _error_data(message: str) -> dict:
