@@ -176,7 +176,7 @@ def run_grade_with(submissions, out, **kwargs):
     ``lms_mode``) and :func:`class_job`'s."""
     from flowtrack_course.grading.grade import run_grade
 
-    names = ("assignment", "accept_renamed", "roster", "lms", "lms_mode")
+    names = ("assignment", "accept_renamed", "roster", "lms", "lms_mode", "ignore_flat")
     own = {k: kwargs.pop(k) for k in names if k in kwargs}
     return run_grade(class_job(submissions, out, **kwargs), **own)
 

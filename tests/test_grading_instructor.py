@@ -209,12 +209,12 @@ def test_folders_without_any_expected_notebook_grade_nobody(tmp_path):
     assert run.status == 2 and "no student folder" in run.reason
 
 
-def test_moodle_folder_names_get_a_suggested_rename(tmp_path):
+def test_moodle_folder_names_are_graded_as_ids_with_a_suggested_rename(tmp_path):
     subs = tmp_path / "subs"
     _nb(subs / "Jane Doe_4242_assignsubmission_file_" / EXA.notebook, EXA, "CORRECT")
     run, lines = _run(subs, tmp_path / "out")
-    assert run.status == 2 and "not usable student ids" in run.reason
-    assert any("Jane_Doe" in ln and "mv" in ln for ln in lines)
+    assert run.status == 0 and [r["student"] for r in run.rows] == ["Jane Doe_4242_assignsubmission_file_"]
+    assert any(ln.endswith("/Jane Doe'") and "mv" in ln for ln in lines)  # the roster's id, spaces kept
 
 
 def test_cli_grade_exits_nonzero_on_a_flat_layout(tmp_path, capsys):

@@ -94,6 +94,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
             roster=args.roster,
             lms=args.lms,
             lms_mode="exercises" if args.lms_per_exercise else "total",
+            ignore_flat=args.ignore_flat,
         )
     except UnsafeSandbox as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -136,8 +137,15 @@ def _add_instructor_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--accept-renamed",
         action="store_true",
-        help="grade the best renamed copy of a missing notebook ('name (1).ipynb', 'name-2.ipynb', case "
-        "changes: how Canvas and Moodle rename resubmissions) and say so in the student's feedback",
+        help="grade the newest copy of each notebook ('name (1).ipynb', 'name-2.ipynb', case changes: how "
+        "Canvas and Moodle rename resubmissions; the highest copy number, then the newest file), also when "
+        "the original is there, and name the file graded and those ignored in the student's feedback",
+    )
+    p.add_argument(
+        "--ignore-flat",
+        action="store_true",
+        help="leave out notebooks put directly in SUBMISSIONS (reported, not graded) without making the "
+        "run's exit status 1",
     )
     p.add_argument(
         "--roster",

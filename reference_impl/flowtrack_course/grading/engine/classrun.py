@@ -18,7 +18,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-import re
 import sys
 import tempfile
 from collections.abc import Iterable, Sequence
@@ -29,7 +28,8 @@ from typing import Any
 from flowtrack.validation import positive_int
 
 from .jobs import ClassJob, StudentJob
-from .results import round_score, write_atomic
+from .layout import student_id_problem
+from .results import round_score, student_folder, write_atomic
 from .run import check_environment, preload_modules
 from .spec import Exercise
 from .student import exercises_hash, grade_student
@@ -42,6 +42,7 @@ __all__ = [
     "list_students",
     "run_class",
     "uniform_failures",
+    "unusable_students",
 ]
 
 # What a class run writes into its output folder beside the student folders: a student folder of one
@@ -50,7 +51,6 @@ RESERVED_NAMES = frozenset(
     {"grades.csv", "gradebook.db", "gradebook.db-journal", "gradebook.db-wal", "gradebook.db-shm",
      "misconceptions.csv"}
 )
-_STUDENT_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.@+\-]{0,127}$")
 #: disk space the grader keeps for its outputs where students write to the same filesystem
 GRADER_RESERVE = 32 << 20
 
@@ -60,23 +60,27 @@ class UnsafeSandbox(RuntimeError):
 
 
 def list_students(submissions: str | os.PathLike) -> list[str]:
-    """The student folders of ``submissions`` (sorted; hidden folders ignored).
+    """The student ids of ``submissions``: its folders' names, as they are (spaces, accents and any
+    script included), sorted; hidden folders and names that cannot be ids
+    (:func:`~.layout.student_id_problem`, reported by :func:`unusable_students`) are left out.
 
     Raises
     ------
     FileNotFoundError
         ``submissions`` is not a folder.
-    ValueError
-        A folder name is not a safe student id (letters, digits, ``_.@+-``).
     """
     root = Path(submissions)
     if not root.is_dir():
         raise FileNotFoundError(f"submissions: no such folder: {root}")
     names = sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
-    bad = [n for n in names if not _STUDENT_NAME.match(n)]
-    if bad:
-        raise ValueError(f"submissions: student folder names must match {_STUDENT_NAME.pattern}, got {bad}")
-    return names
+    return [n for n in names if not student_id_problem(n)]
+
+
+def unusable_students(submissions: str | os.PathLike) -> dict[str, str]:
+    """``{folder name: why}`` of the folders of ``submissions`` that cannot be student ids."""
+    root = Path(submissions)
+    names = sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
+    return {n: why for n in names if (why := student_id_problem(n))}
 
 
 _POOLS: dict[tuple, Any] = {}
@@ -128,7 +132,7 @@ def _grade(job: StudentJob) -> dict:
         return {"student": job.student, "error": str(exc), "config_error": True}
     except Exception as exc:
         try:
-            (Path(job.out) / job.student / "results.json").unlink(missing_ok=True)
+            (Path(job.out) / student_folder(job.student) / "results.json").unlink(missing_ok=True)
         except OSError:
             pass
         return {"student": job.student, "error": f"{type(exc).__name__}: {exc}"}
@@ -238,16 +242,18 @@ def run_class(job: ClassJob) -> tuple[list[dict], tuple[Exercise, ...], list[str
     students = list_students(job.submissions)
     if options.sandbox_factory is None:
         _check_isolation(job, private, len(students))
+    job.out.mkdir(parents=True, exist_ok=True)
+    ex_hash = exercises_hash(exercises)
+    reserved = [s for s in students if student_folder(s).lower() in RESERVED_NAMES]
+    jobs = [
+        StudentJob(s, job.submissions / s, job.out, exercises, options, ex_hash, job.renamed.get(s) or {},
+                   job.ignored.get(s) or {})
+        for s in students if s not in reserved
+    ]
+    if options.sandbox_factory is None and jobs:
         # before any student: a sandbox that cannot import what an exercise allows would score
         # every student 0 on it (grading_sandbox.SandboxConfigError, raised with the fix)
         check_environment(exercises, options)
-    job.out.mkdir(parents=True, exist_ok=True)
-    ex_hash = exercises_hash(exercises)
-    reserved = [s for s in students if s.lower() in RESERVED_NAMES]
-    jobs = [
-        StudentJob(s, job.submissions / s, job.out, exercises, options, ex_hash, job.renamed.get(s) or {})
-        for s in students if s not in reserved
-    ]
     summaries: dict[str, dict] = {}
     bar = tqdm(total=len(jobs), desc="grading", unit="student", disable=not job.progress)
     if job.jobs == 1 or len(jobs) <= 1 or custom:

@@ -74,9 +74,12 @@ class GradingOptions:
 class StudentJob:
     """One student's folder to grade into ``out/<student>/``.
 
-    ``exercises`` are the exercises to grade; ``exercises_hash`` (computed when None) identifies
-    them in ``results.json``; ``renamed`` (``{exercise id: path in the folder}``) grades accepted
-    renamed copies of missing notebooks (``--accept-renamed``).
+    ``student`` is the student's id (the folder's name, whatever its letters; the outputs go to
+    ``out/<student_folder(student)>/``); ``exercises`` are the exercises to grade; ``exercises_hash``
+    (computed when None) identifies them in ``results.json``; ``renamed`` (``{exercise id: path in
+    the folder}``) grades accepted renamed copies (``--accept-renamed``: a missing notebook's, or
+    one newer than the notebook under its expected name); ``ignored`` (``{exercise id: [paths]}``)
+    are the other files standing for an exercise, which the feedback names.
     """
 
     student: str
@@ -86,6 +89,7 @@ class StudentJob:
     options: GradingOptions = field(default_factory=GradingOptions)
     exercises_hash: str | None = None
     renamed: Mapping[str, str] = field(default_factory=dict)
+    ignored: Mapping[str, Sequence[str]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,9 @@ class ClassJob:
         How each exercise is run.
     renamed : mapping
         ``{student: {exercise id: path}}`` of accepted renamed copies.
+    ignored : mapping
+        ``{student: {exercise id: [paths]}}`` of the files standing for an exercise that are not
+        graded (named in the feedback).
     allow_unsafe_sandbox : bool
         Grade even where bubblewrap cannot isolate student code.
     progress : bool
@@ -122,6 +129,7 @@ class ClassJob:
     jobs: int = 1
     options: GradingOptions = field(default_factory=GradingOptions)
     renamed: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
+    ignored: Mapping[str, Mapping[str, Sequence[str]]] = field(default_factory=dict)
     allow_unsafe_sandbox: bool = False
     progress: bool = True
     log: Callable[[str], None] | None = None

@@ -14,13 +14,17 @@ LMS downloads rarely look like that. :func:`check_layout` finds, without reading
   each gets a suggested ``mv`` into ``<student>/<notebook>``;
 - *renamed copies* of an expected notebook inside a student folder: ``name (1).ipynb``,
   ``name-2.ipynb``, ``name_2.ipynb``, ``name - Copy.ipynb``, a change of case, an LMS prefix. The
-  best match is the highest copy number (the latest resubmission), then the newest file;
+  best match is the highest copy number (the latest resubmission), then the newest file, whether
+  the expected file is there too or not (the expected name has copy number 0);
 - *unknown files* (anything that is neither an expected notebook nor a renamed copy of one);
-- student folders whose names are not usable ids (spaces from Moodle's folder names).
+- student folders whose names cannot be student ids (:func:`student_id_problem`: control
+  characters, bytes that are not UTF-8); any other name is an id as it is, spaces and accents
+  included (files are written under :func:`~.results.student_folder`, a safe form of it).
 
 The grader itself (:func:`~.student.locate_notebook`) only accepts the exact file name; with
-``flowtrack grade --accept-renamed`` the renamed copies found here are graded in place of the
-missing notebooks and the student's feedback says so (:func:`~.student.locate_notebooks`).
+``flowtrack grade --accept-renamed`` the best copy found here is graded (in place of a missing
+notebook, or of an older one under the expected name), and the student's feedback names the file
+graded and the files ignored (:func:`~.student.locate_notebooks`).
 
 Matching works on a canonical form of a file name: without ``.ipynb``, lower case, copy suffixes
 removed (repeatedly), separators unified:
@@ -36,6 +40,7 @@ from __future__ import annotations
 import os
 import re
 import shlex
+import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +58,7 @@ __all__ = [
     "match_exercise",
     "suggest_rename",
     "suggest_student_id",
+    "student_id_problem",
 ]
 
 # one copy marker at the end of a stem: " (1)", "-2", "_2", " 2", " - Copy", "copy 3"
@@ -63,7 +69,6 @@ _IGNORED_PARTS = ("__MACOSX", ".ipynb_checkpoints", "__pycache__")
 # "<Full Name>_<id>_assignsubmission_file_"
 _CANVAS_TAIL = re.compile(r"(?:_late)?(?:_\d+){1,2}$", re.IGNORECASE)
 _MOODLE_TAIL = re.compile(r"_\d+_assignsubmission(?:_\w*)?$", re.IGNORECASE)
-_STUDENT_OK = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.@+\-]{0,127}$")
 
 
 def _stem(name: str) -> str:
@@ -99,6 +104,7 @@ class Rename:
     expected: str
     found: str
     reason: str
+    original: str | None = None  # the expected file when it is there too (older than ``found``)
 
     def __str__(self) -> str:
         return f"{self.student}/{self.found} -> {self.student}/{self.expected} ({self.reason})"
@@ -112,9 +118,11 @@ class LayoutReport:
     students: list[str] = field(default_factory=list)
     flat: dict[str, str] = field(default_factory=dict)  # top-level notebook -> suggested <student>/<nb>
     flat_unmatched: list[str] = field(default_factory=list)  # top-level files matching no exercise
-    bad_folders: dict[str, str] = field(default_factory=dict)  # folder -> suggested id
+    unusable: dict[str, str] = field(default_factory=dict)  # folder -> why it cannot be an id
+    lms_folders: dict[str, str] = field(default_factory=dict)  # LMS download folder -> suggested id
     renamed: list[Rename] = field(default_factory=list)
     ambiguous: dict[tuple[str, str], list[str]] = field(default_factory=dict)  # other candidates
+    older_copies: dict[tuple[str, str], list[str]] = field(default_factory=dict)  # behind the expected file
     unknown: dict[str, list[str]] = field(default_factory=dict)  # student -> files
     missing: dict[str, list[str]] = field(default_factory=dict)  # student -> exercise ids
     found: dict[str, int] = field(default_factory=dict)  # student -> notebooks at the expected place
@@ -122,7 +130,7 @@ class LayoutReport:
     @property
     def blocking(self) -> bool:
         """True when grading would grade nobody's work: no usable student folder with a notebook."""
-        return bool(self.flat or self.bad_folders) and not any(self.found.values())
+        return bool(self.flat or self.unusable) and not any(self.found.values())
 
     def renamed_for(self, student: str) -> dict[str, str]:
         """``{exercise id: path relative to the student folder}`` of ``student``'s renamed copies."""
@@ -131,6 +139,30 @@ class LayoutReport:
     def renamed_map(self) -> dict[str, dict[str, str]]:
         """``{student: renamed_for(student)}`` for every student with a renamed copy."""
         return {s: self.renamed_for(s) for s in sorted({r.student for r in self.renamed})}
+
+    def ignored_for(self, student: str, *, accept_renamed: bool = False) -> dict[str, list[str]]:
+        """``{exercise id: [paths relative to the student folder]}``: the files of ``student`` that
+        stand for an exercise but are not the one graded (the feedback names them). With
+        ``accept_renamed`` the best copy is graded and the others (the expected file included) are
+        ignored; without it only the expected file is graded and every renamed copy is ignored."""
+        out: dict[str, list[str]] = {}
+        for r in self.renamed:
+            if r.student != student:
+                continue
+            others = self.ambiguous.get((student, r.exercise_id), [])
+            if accept_renamed:
+                out[r.exercise_id] = list(others)
+            else:
+                out[r.exercise_id] = [r.found, *(o for o in others if o != r.original)]
+        for (s, ex_id), older in self.older_copies.items():
+            if s == student:
+                out[ex_id] = list(older)
+        return out
+
+    def ignored_map(self, *, accept_renamed: bool = False) -> dict[str, dict[str, list[str]]]:
+        """``{student: ignored_for(student)}`` for every student with ignored files."""
+        out = {s: self.ignored_for(s, accept_renamed=accept_renamed) for s in self.students}
+        return {s: v for s, v in out.items() if v}
 
     def messages(self, exercises: Sequence[Exercise], *, accept_renamed: bool = False) -> list[str]:
         """Human-readable warnings (empty when the layout is as expected)."""
@@ -149,11 +181,18 @@ class LayoutReport:
                     out.append(f"  mkdir -p {q(str(d.parent))} && mv {q(str(Path(sub) / f))} {q(str(d))}")
             if self.flat_unmatched:
                 out.append("layout: files matching no exercise: " + ", ".join(sorted(self.flat_unmatched)))
-        if self.bad_folders:
+        if self.unusable:
+            out.append(f"layout: {len(self.unusable)} student folder(s) NOT graded: their names cannot be "
+                       "student ids (rename them and grade again):")
+            for f, why in sorted(self.unusable.items()):
+                out.append(f"  {f!a}: {why}")
+        if self.lms_folders:
             out.append(
-                "layout: student folder names must be ids (letters, digits, _.@+-); suggested renames:"
+                f"layout: {len(self.lms_folders)} folder name(s) look like an LMS download's; they are "
+                "graded under these names (the id in grades.csv and the roster join); to use the "
+                "roster's ids instead, rename them:"
             )
-            for f, new in sorted(self.bad_folders.items()):
+            for f, new in sorted(self.lms_folders.items()):
                 out.append(f"  mv {q(str(Path(sub) / f))} {q(str(Path(sub) / new))}")
         if self.renamed:
             verb = (
@@ -167,12 +206,15 @@ class LayoutReport:
             out.append(f"layout: {len(self.renamed)} renamed copy(ies) of expected notebooks, {verb}:")
             for r in self.renamed:
                 line = f"  {r}"
-                others = self.ambiguous.get((r.student, r.exercise_id))
+                if r.original is not None:
+                    line += f"; newer than the expected {r.original}, which is " + (
+                        "ignored" if accept_renamed else "graded instead")
+                others = [o for o in self.ambiguous.get((r.student, r.exercise_id), []) if o != r.original]
                 if others:
-                    line += f"; also found {', '.join(others)}"
+                    line += f"; also found {', '.join(others)} (ignored)"
                 out.append(line)
             if not accept_renamed:
-                out.append("layout: suggested renames:")
+                out.append("layout: suggested renames (a resubmission replaces the older expected file):")
                 for r in self.renamed:
                     src, dst = Path(sub) / r.student / r.found, Path(sub) / r.student / r.expected
                     out.append(f"  mv {q(str(src))} {q(str(dst))}")
@@ -216,18 +258,45 @@ def match_exercise(name: str, exercises: Sequence[Exercise]) -> tuple[Exercise, 
 
 
 def suggest_student_id(prefix: str) -> str:
-    """A student id from an LMS file-name prefix or folder name (``<student>`` when none is left).
+    """A student id from an LMS file-name prefix or folder name (``<student>`` when none is left):
+    the LMS' id and submission numbers removed, letters of every script kept.
 
     >>> suggest_student_id("doejane_LATE_12345_67890")
     'doejane'
     >>> suggest_student_id("Jane Doe_4242_assignsubmission_file_")
-    'Jane_Doe'
+    'Jane Doe'
+    >>> suggest_student_id("José Müller_77_assignsubmission_file_")
+    'José Müller'
     """
     p = str(prefix).strip(" _-")
     p = _MOODLE_TAIL.sub("", p)
     p = _CANVAS_TAIL.sub("", p)
-    p = re.sub(r"[^A-Za-z0-9_.@+\-]+", "_", p).strip("_.-")[:128]
-    return p if p and _STUDENT_OK.match(p) else "<student>"
+    p = " ".join(re.sub(r"[^\w.@+\- ]+", "_", p).split()).strip("_.- ")[:128]
+    return p if p and not student_id_problem(p) and not p.startswith(".") else "<student>"
+
+
+def student_id_problem(name: str) -> str:
+    """Why a folder name cannot be a student id ("" when it can: any name is an id as it is,
+    spaces, accents and other scripts included; only what no CSV, feedback page or LMS could carry
+    is refused).
+
+    >>> student_id_problem("José Müller"), student_id_problem("李雷"), student_id_problem("a@b.org")
+    ('', '', '')
+    >>> student_id_problem("bad\\nname")
+    'it holds control characters (a new line, a tab, ...)'
+    """
+    name = str(name)
+    if not name.strip():
+        return "it is empty or only spaces"
+    if any(0xD800 <= ord(c) <= 0xDFFF for c in name):
+        return "it holds bytes that are not UTF-8 text (rename it in UTF-8)"
+    joiners = "\u200c\u200d"  # zero-width (non-)joiners: part of how some scripts write names
+    if any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp", "Cs", "Co", "Cn") and c not in joiners
+           for c in name):
+        return "it holds control characters (a new line, a tab, ...)"
+    if len(name) > 200:
+        return "it is longer than 200 characters"
+    return ""
 
 
 def _files(folder: Path) -> list[Path]:
@@ -269,29 +338,34 @@ def _check_student(report: LayoutReport, student: str, folder: Path, exercises: 
     report.found[student] = 0
     for ex in exercises:
         located = locate_notebook(folder, ex)
+        original = None
         if located.is_file():
             report.found[student] += 1
-            used.add(located.relative_to(folder) if located.is_relative_to(folder) else located)
-            continue
-        cands = []
-        for rel in files:
-            m = match_exercise(rel.name, [ex])
-            if m is not None and _inside(folder, rel):
-                cands.append(rel)
+            original = located.relative_to(folder) if located.is_relative_to(folder) else located
+            used.add(original)
+        cands = [rel for rel in files
+                 if rel != original and match_exercise(rel.name, [ex]) is not None and _inside(folder, rel)]
         if not cands:
-            report.missing.setdefault(student, []).append(ex.id)
+            if original is None:
+                report.missing.setdefault(student, []).append(ex.id)
             continue
-        ordered = _best(folder, cands)
-        best = ordered[0]
         used.update(cands)
+        # the expected name has copy number 0: a numbered resubmission (or a newer same-named copy)
+        # is the student's latest work even while the first submission is still there
+        ordered = _best(folder, cands + ([original] if original is not None else []))
+        best = ordered[0]
+        if best == original:
+            report.older_copies[(student, ex.id)] = [p.as_posix() for p in ordered[1:]]
+            continue
         expected_name = Path(ex.notebook).name
-        if best.name.lower() == expected_name.lower():
+        if best.name.lower() == expected_name.lower() and best.name != expected_name:
             reason = "case differs"
         elif copy_number(best.name):
             reason = f"resubmission copy {copy_number(best.name)}, as Canvas and Moodle name them"
         else:
             reason = "renamed"
-        report.renamed.append(Rename(student, ex.id, ex.notebook, best.as_posix(), reason))
+        report.renamed.append(Rename(student, ex.id, ex.notebook, best.as_posix(), reason,
+                                     original.as_posix() if original is not None else None))
         if len(ordered) > 1:
             report.ambiguous[(student, ex.id)] = [p.as_posix() for p in ordered[1:]]
     unknown = [rel.as_posix() for rel in files if rel not in used]
@@ -315,9 +389,14 @@ def check_layout(submissions: str | os.PathLike, exercises: Sequence[Exercise]) 
         if entry.name.startswith(".") or entry.name in _IGNORED_PARTS:
             continue
         if entry.is_dir():
-            if not _STUDENT_OK.match(entry.name):
-                report.bad_folders[entry.name] = suggest_student_id(entry.name)
+            why = student_id_problem(entry.name)
+            if why:
+                report.unusable[entry.name] = why
                 continue
+            if _MOODLE_TAIL.search(entry.name.rstrip(" _-")):
+                suggested = suggest_student_id(entry.name)
+                if suggested != "<student>":
+                    report.lms_folders[entry.name] = suggested
             report.students.append(entry.name)
             _check_student(report, entry.name, entry, exercises)
         elif entry.is_file():

@@ -9,9 +9,12 @@ what a re-run compares to keep a finished student).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import re
 import tempfile
+import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,7 +23,7 @@ from .feedback import feedback_lines, mistake_records
 from .mistakes import Catalogue
 
 __all__ = ["FORMAT", "ExerciseResult", "TestResult", "feedback_markdown", "read_results", "results_json",
-           "round_score", "write_atomic"]
+           "round_score", "student_folder", "write_atomic"]
 
 FORMAT = "flowtrack-results/1"
 
@@ -65,6 +68,34 @@ class ExerciseResult:
     @property
     def max_score(self) -> float:
         return float(sum(t.max_score for t in self.tests))
+
+
+_PLAIN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.@+\-]{0,127}$")
+
+
+def student_folder(student: str) -> str:
+    """The name of a student's output folder (``OUT/<student_folder>/results.json``, feedback).
+
+    A student id is the name of the student's submission folder, whatever its letters; file names
+    get a safe form of it: the id itself when it is plain ASCII (letters, digits, ``_.@+-``), else
+    its letters without accents, ``_`` for the rest, and 8 hex digits of its hash (two ids never
+    share a folder). Every output that names a student (grades.csv, results.json, the feedback,
+    the gradebook, the reports, the LMS files) names the id, never this.
+
+    >>> import hashlib
+    >>> student_folder("ann_42"), student_folder("李雷")[:8]
+    ('ann_42', 'student-')
+    >>> digest = hashlib.sha256("José Müller".encode()).hexdigest()[:8]
+    >>> student_folder("José Müller") == f"Jose_Muller-{digest}"
+    True
+    """
+    student = str(student)
+    if _PLAIN_ID.match(student):
+        return student
+    folded = unicodedata.normalize("NFKD", student).encode("ascii", "ignore").decode("ascii")
+    base = re.sub(r"[^A-Za-z0-9_.@+\-]+", "_", folded).strip("_.-@+")[:64] or "student"
+    digest = hashlib.sha256(student.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+    return f"{base}-{digest}"
 
 
 def write_atomic(path: Path, text: str) -> None:

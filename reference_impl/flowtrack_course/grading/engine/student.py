@@ -4,6 +4,9 @@ results still stand, each exercise in the sandbox, and the student's outputs::
     out/<student>/results.json                Gradescope format; written last and atomically
     out/<student>/feedback/<exercise>.md      what the student may see
 
+(``<student>`` is :func:`~.results.student_folder` of the student's id: the id itself when it is
+plain ASCII.)
+
 A student whose ``results.json`` is complete and was made from the same exercises, the same
 submitted files and the same key is kept (unless ``force``): a run killed halfway and restarted
 loses no finished student, and a second run changes nothing.
@@ -29,6 +32,7 @@ from .results import (
     read_results,
     results_json,
     round_score,
+    student_folder,
     write_atomic,
 )
 from .run import preload_modules, run_exercise
@@ -80,13 +84,18 @@ def locate_notebook(student_dir: Path, exercise: Exercise) -> Path:
 
 
 def locate_notebooks(
-    student_dir: str | os.PathLike, exercises: Sequence[Exercise], renamed: Mapping[str, str] | None = None
+    student_dir: str | os.PathLike,
+    exercises: Sequence[Exercise],
+    renamed: Mapping[str, str] | None = None,
+    ignored: Mapping[str, Sequence[str]] | None = None,
 ) -> tuple[dict[str, Path], dict[str, list[str]]]:
     """``({exercise id: path}, {exercise id: notes})`` of a student's files.
 
     ``renamed`` (``{exercise id: path relative to the folder}``, the instructor's
-    ``--accept-renamed``) stands in for an exercise whose file is missing under its expected name,
-    when it is a file inside the folder; the notes say so in that exercise's feedback.
+    ``--accept-renamed``) stands in for an exercise's notebook when it is a file inside the folder:
+    a renamed copy of a missing notebook, or a resubmission newer than the file under the expected
+    name. ``ignored`` (``{exercise id: [paths]}``) are the other files that stand for it. The notes
+    (that exercise's feedback) name the file graded and the files ignored.
     """
     folder = Path(student_dir)
     notebooks = {ex.id: locate_notebook(folder, ex) for ex in exercises}
@@ -99,14 +108,32 @@ def locate_notebooks(
             ok = path.is_file() and path.resolve().is_relative_to(root)
         except (OSError, RuntimeError):
             ok = False
-        if not ok or ex_id not in notebooks or notebooks[ex_id].is_file():
+        if not ok or ex_id not in notebooks:
             continue
         notebooks[ex_id] = path
         shown = path.relative_to(folder).as_posix()
         notes[ex_id] = [
-            f"graded `{shown}` in place of the expected `{by_id[ex_id].notebook}` (renamed copy accepted "
-            "by the instructor, --accept-renamed); please submit under the expected name next time"
+            f"graded `{shown}` in place of the expected `{by_id[ex_id].notebook}` (the newest copy: the "
+            "highest copy number, then the newest file; renamed copies accepted by the instructor, "
+            "--accept-renamed); please submit under the expected name next time"
         ]
+    for ex_id, files in (ignored or {}).items():
+        if ex_id not in notebooks or not files:
+            continue
+        graded = notebooks[ex_id]
+        shown = graded.relative_to(folder).as_posix() if graded.is_relative_to(folder) else graded.name
+        names = ", ".join(f"`{f}`" for f in files)
+        if ex_id in notes:
+            lead = ""
+        elif graded.is_file():
+            lead = f"graded `{shown}`; "
+        else:
+            lead = f"`{by_id[ex_id].notebook}` was not submitted under its expected name; "
+        notes.setdefault(ex_id, []).append(
+            f"{lead}ignored {names}: one file per exercise is graded (the one under the expected name "
+            "unless the instructor accepts renamed copies, --accept-renamed; then the highest copy "
+            "number, then the newest file)"
+        )
     return notebooks, notes
 
 
@@ -200,9 +227,9 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
 
     options = job.options
     exercises = tuple(job.exercises)
-    dest = Path(job.out) / job.student
+    dest = Path(job.out) / student_folder(job.student)
     ex_hash = job.exercises_hash or exercises_hash(exercises)
-    notebooks, notes = locate_notebooks(job.folder, exercises, job.renamed)
+    notebooks, notes = locate_notebooks(job.folder, exercises, job.renamed, job.ignored)
     sub_hash = submission_hash(notebooks)
     key_id = secret_id(options.secret)
     results_path = dest / "results.json"

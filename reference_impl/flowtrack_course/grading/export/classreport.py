@@ -24,6 +24,8 @@ import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from ..engine.results import student_folder
+
 __all__ = [
     "MISCONCEPTIONS_HEADER",
     "class_report_markdown",
@@ -48,7 +50,7 @@ def collect_mistakes(out: str | os.PathLike, students: Sequence[str]) -> dict[st
     found: dict[str, list[tuple[str, str]]] = {}
     for s in students:
         try:
-            data = json.loads((Path(out) / s / "results.json").read_text(encoding="utf-8"))
+            data = json.loads((Path(out) / student_folder(s) / "results.json").read_text(encoding="utf-8"))
         except (OSError, ValueError):
             continue
         pairs: set[tuple[str, str]] = set()

@@ -23,6 +23,7 @@ import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+from ..engine.results import student_folder
 from ..engine.spec import Exercise
 
 __all__ = ["grade_cells", "notebook_name", "write_gradebook"]
@@ -49,7 +50,9 @@ def grade_cells(exercise: Exercise) -> dict[str, float]:
 
 def _roster_fields(roster: dict | None, student: str) -> dict:
     """nbgrader Student fields (first_name, last_name, email, lms_user_id) from a roster entry."""
-    entry = (roster or {}).get(student)
+    from .lms import roster_entry
+
+    entry = roster_entry(roster or {}, student)
     return entry.nbgrader_fields() if entry is not None else {}
 
 
@@ -170,7 +173,7 @@ def write_gradebook(
             ex_of = {notebook_name(ex): ex.id for ex in exercises}
             for student in students:
                 gb.add_student(student, **_roster_fields(roster, student))
-                scores = _cell_scores(Path(out) / student / "results.json")
+                scores = _cell_scores(Path(out) / student_folder(student) / "results.json")
                 if scores is None:
                     continue
                 # the submission's grades as add_submission made them (one per grade cell of each

@@ -35,6 +35,7 @@ import csv
 import io
 import os
 import re
+import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -46,6 +47,8 @@ __all__ = [
     "moodle_csv",
     "read_grades_csv",
     "read_roster",
+    "roster_entry",
+    "roster_key",
 ]
 
 _ALIASES = {
@@ -92,6 +95,26 @@ class RosterEntry:
         if self.lms_id:
             out["lms_user_id"] = self.lms_id
         return {k: v for k, v in out.items() if v}
+
+
+def roster_key(student: str) -> str:
+    """How a student id is compared with the roster's: Unicode NFC (an accent typed as one character
+    or as a letter and a combining mark, as macOS writes file names), outer spaces ignored.
+
+    >>> roster_key("Jose\u0301 ") == roster_key("Jos\u00e9")
+    True
+    """
+    return unicodedata.normalize("NFC", str(student)).strip()
+
+
+def roster_entry(roster: Mapping[str, RosterEntry], student: str) -> RosterEntry | None:
+    """The roster's entry of ``student`` (a grades.csv id, a folder name), compared by
+    :func:`roster_key`; None when the roster has no such student."""
+    entry = roster.get(student)
+    if entry is not None:
+        return entry
+    key = roster_key(student)
+    return next((e for sid, e in roster.items() if roster_key(sid) == key), None)
 
 
 def _norm(col: str) -> str:
@@ -224,19 +247,20 @@ def _columns(
 def _class_rows(rows: Sequence[dict], roster: Mapping[str, RosterEntry] | None) -> tuple[list, list[str]]:
     """``[(RosterEntry, grade row or None)]`` in roster order then the rest, and warnings."""
     roster = dict(roster or {})
-    graded = {r["student"]: r for r in rows}
+    graded = {roster_key(r["student"]): r for r in rows}  # the folder names, joined as ids
     out, warnings = [], []
     for sid, entry in roster.items():
-        out.append((entry, graded.get(sid)))
-    missing_roster = [s for s in graded if s not in roster]
+        out.append((entry, graded.get(roster_key(sid))))
+    in_roster = {roster_key(sid) for sid in roster}
+    missing_roster = [r["student"] for r in rows if roster_key(r["student"]) not in in_roster]
     for s in sorted(missing_roster):
-        out.append((RosterEntry(s), graded[s]))
+        out.append((RosterEntry(s), graded[roster_key(s)]))
     if roster and missing_roster:
         warnings.append(
             f"{len(missing_roster)} graded student(s) not in the roster (exported with the folder name as "
             f"the login id only): {', '.join(sorted(missing_roster)[:10])}"
         )
-    absent = [sid for sid in roster if sid not in graded]
+    absent = [sid for sid in roster if roster_key(sid) not in graded]
     if absent:
         warnings.append(
             f"{len(absent)} roster student(s) without a graded submission (left blank): "

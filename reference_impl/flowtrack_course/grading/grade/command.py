@@ -5,7 +5,8 @@ gradebook (:mod:`..export.gradebook`). :func:`run_grade` is the command around i
 
 1. :func:`~..engine.layout.check_layout` on SUBMISSIONS: flat layouts, renamed copies and unknown
    files are reported with the expected layout and suggested ``mv`` commands; with
-   ``accept_renamed`` the best renamed copy of a missing notebook is graded (and the feedback says so);
+   ``accept_renamed`` the best copy of a notebook is graded, the original's place taken by a newer
+   resubmission too (the feedback names the file graded and those ignored);
 2. the students that will be re-graded and why (:func:`~.keys.regrade_reasons`);
 3. grading, with the roster's names and e-mails in the nbgrader gradebook;
 4. ``OUT/misconceptions.csv`` and ``OUT/class_report.md`` (:mod:`..export.classreport`), and with
@@ -67,11 +68,15 @@ def run_grade(
     roster: str | os.PathLike | None = None,
     lms: str | None = None,
     lms_mode: str = "total",
+    ignore_flat: bool = False,
 ) -> GradeRun:
     """Check the layout, grade, and write the class outputs (see the module docstring).
 
-    ``job`` says what to grade and how (its ``renamed`` is filled from the layout check when
-    ``accept_renamed``); ``roster`` is the roster CSV's path; ``lms`` ``"canvas"`` or ``"moodle"``.
+    ``job`` says what to grade and how (its ``renamed`` and ``ignored`` are filled from the layout
+    check: with ``accept_renamed`` the newest copy of each notebook is graded); ``roster`` is the
+    roster CSV's path; ``lms`` ``"canvas"`` or ``"moodle"``. A student folder whose name cannot be an
+    id is left out with a message, and so are files directly in SUBMISSIONS; both make the exit status
+    1 (the latter unless ``ignore_flat``).
     """
     from ..engine.layout import check_layout
     from ..engine.seeds import secret_id
@@ -94,22 +99,16 @@ def run_grade(
     report = check_layout(submissions, exercises)
     for msg in report.messages(exercises, accept_renamed=accept_renamed):
         log(msg)
-    if report.bad_folders:
-        return GradeRun(
-            2,
-            reason=(
-                f"graded no student: {len(report.bad_folders)} folder name(s) in {submissions} are not "
-                "usable student ids (see the suggested renames above)"
-            ),
-        )
     if not report.students:
-        why = (
-            "the notebooks are directly in SUBMISSIONS (see the suggested moves above)"
-            if (report.flat or report.flat_unmatched)
-            else "SUBMISSIONS holds no student folder"
-        )
+        if report.flat or report.flat_unmatched:
+            why = "the notebooks are directly in SUBMISSIONS (see the suggested moves above)"
+        elif report.unusable:
+            why = f"the {len(report.unusable)} folder name(s) in {submissions} cannot be student ids (above)"
+        else:
+            why = "SUBMISSIONS holds no student folder"
         return GradeRun(2, reason=f"graded no student: {why}")
     renamed = report.renamed_map() if accept_renamed else {}
+    ignored = report.ignored_map(accept_renamed=accept_renamed)
     usable = [s for s in report.students if report.found.get(s) or renamed.get(s)]
     if not usable:
         hint = " (renamed copies were found: rename them or use --accept-renamed)" if report.renamed else ""
@@ -124,7 +123,7 @@ def run_grade(
     ex_hash = exercises_hash(exercises)
     sub_hashes = {}
     for s in report.students:
-        notebooks, _ = locate_notebooks(Path(submissions) / s, exercises, renamed.get(s))
+        notebooks, _ = locate_notebooks(Path(submissions) / s, exercises, renamed.get(s), ignored.get(s))
         sub_hashes[s] = submission_hash(notebooks)
     reasons = regrade_reasons(
         job.out,
@@ -134,7 +133,7 @@ def run_grade(
         key_id=secret_id(job.options.secret),
         force=job.options.force,
     )
-    job = replace(job, exercises=exercises, renamed=renamed, log=log)
+    job = replace(job, exercises=exercises, renamed=renamed, ignored=ignored, log=log)
     try:
         rows = grade_class(job, assignment=assignment, roster=roster_map)
     except SandboxConfigError as exc:  # found before any student was graded
@@ -164,6 +163,20 @@ def run_grade(
             f"warning: {len(report.renamed)} renamed notebook(s) were not graded "
             "(see above; --accept-renamed)"
         )
+    stray = len(report.flat) + len(report.flat_unmatched)
+    if stray and not ignore_flat:
+        summary.append(
+            f"error: {stray} file(s) directly in {submissions} were not graded (notebooks go in one folder "
+            "per student: see the suggested moves above); move them and grade again, or pass --ignore-flat "
+            "to leave them out"
+        )
+    elif stray:
+        summary.append(f"warning: {stray} file(s) directly in {submissions} left out (--ignore-flat)")
+    if report.unusable:
+        summary.append(
+            f"error: {len(report.unusable)} student folder(s) not graded: their names cannot be student ids "
+            f"({', '.join(ascii(n) for n in sorted(report.unusable)[:10])}; see above)"
+        )
     empty = [s for s in report.students if s not in usable]
     if empty:
         summary.append(
@@ -189,8 +202,11 @@ def run_grade(
         summary.append(f"wrote {path} ({lms} gradebook import, {lms_mode})")
         summary += [f"warning: {w}" for w in warnings]
     if roster_map is not None and not lms:  # (the LMS export reports the same)
-        unknown = [r["student"] for r in rows if r["student"] not in roster_map]
+        from ..export.lms import roster_entry
+
+        unknown = [r["student"] for r in rows if roster_entry(roster_map, r["student"]) is None]
         if unknown:
             summary.append(f"warning: {len(unknown)} student(s) not in the roster: {', '.join(unknown[:10])}")
-    status = 3 if (uniform or config) else 1 if errors else 0
+    problems = errors or report.unusable or (stray and not ignore_flat)
+    status = 3 if (uniform or config) else 1 if problems else 0
     return GradeRun(status, rows, summary, "", reasons, files)

@@ -80,7 +80,7 @@ def run_submission(
     from dataclasses import replace
 
     from ..engine.jobs import GradingOptions, StudentJob
-    from ..engine.results import write_atomic
+    from ..engine.results import student_folder, write_atomic
     from ..engine.student import grade_student
 
     results = Path(results)
@@ -95,7 +95,8 @@ def run_submission(
         with tempfile.TemporaryDirectory(prefix="flowtrack-gs-") as tmp:
             job = StudentJob(student, Path(submission), Path(tmp), tuple(exercises), options.hiding(tmp))
             summary = grade_student(job)
-            data = json.loads((Path(tmp) / student / "results.json").read_text(encoding="utf-8"))
+            results_file = Path(tmp) / student_folder(student) / "results.json"
+            data = json.loads(results_file.read_text(encoding="utf-8"))
         if summary.get("isolation", "").startswith("fallback"):
             data["output"] += f"\n(sandbox isolation: {summary['isolation']})"
     except Exception as exc:  # Gradescope must get a results.json

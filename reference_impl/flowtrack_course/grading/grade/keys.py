@@ -17,6 +17,8 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from ..engine.results import student_folder
+
 __all__ = ["InsecureKeyError", "check_key_file", "describe_regrades", "regrade_reasons"]
 
 
@@ -64,7 +66,7 @@ def regrade_reasons(
     reasons: dict[str, str] = {}
     for s in students:
         try:
-            data = json.loads((Path(out) / s / "results.json").read_text(encoding="utf-8"))
+            data = json.loads((Path(out) / student_folder(s) / "results.json").read_text(encoding="utf-8"))
             info = data["extra_data"]["flowtrack"]
         except (OSError, ValueError, KeyError, TypeError):
             continue
