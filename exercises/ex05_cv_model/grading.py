@@ -67,17 +67,15 @@ def _ex05_Q_properties(dt: float, q: float) -> Check:
             return 0.0, Report("expected an array of shape (4, 4)")
         full = compare(outcome, expected, rtol=1e-9, atol=1e-12, variants=variants)
         if not np.allclose(got, got.T, rtol=1e-9, atol=1e-12):
-            return 0.0, Report("Q is not symmetric", mistakes=full.mistakes, checked=full.checked)
+            return 0.0, full.report().retext("Q is not symmetric")
         for i, j in ((0, 0), (2, 0)):
             if not np.isclose(got[i, j], expected[i, j], rtol=1e-9, atol=1e-12):
                 what = {(0, 0): "var(px)", (2, 0): "cov(vx, px)"}[(i, j)]
-                return 0.0, Report(
-                    f"Q[{i}, {j}] = {what} is wrong: expected {expected[i, j]:.6g}, got {got[i, j]:.6g}",
-                    mistakes=full.mistakes,
-                    checked=full.checked,
+                return 0.0, full.report().retext(
+                    f"Q[{i}, {j}] = {what} is wrong: expected {expected[i, j]:.6g}, got {got[i, j]:.6g}"
                 )
         # what the visible asserts check is right; the mistakes still show when the rest is wrong
-        return 1.0, Report("ok", mistakes=full.mistakes, checked=full.checked)
+        return 1.0, full.report().retext("ok")
 
     return check
 

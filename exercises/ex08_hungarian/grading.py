@@ -116,7 +116,7 @@ def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
         gap = (total - best) / max(abs(best), 1e-12)
         return 0.0, Report(
             f"a valid assignment but not a minimal one (total {total:.6g}, the minimum is {best:.6g})",
-            f"a valid assignment but not a minimal one (its total exceeds the minimum by {gap:.2g} of it)",
+            f"a valid assignment but not a minimal one (its total is {100 * gap:.3g} % above the minimum)",
             mistakes,
             visible,
         )
@@ -126,11 +126,15 @@ def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
 
 _EX08_C = np.array([[4.0, 1.0, 3.0], [2.0, 0.0, 5.0], [3.0, 2.0, 2.0]])
 _EX08_RECT = np.array([[10.0, 1.0, 7.0, 3.0], [2.0, 8.0, 9.0, 4.0]])
+# The optima above pair rows and columns both ways ((0, 1) and (1, 0)): (column, row) pairs are the
+# same set there. This one's optimum is a 3-cycle, (0, 1), (1, 2), (2, 0) for 6; read the other way
+# round it is (0, 2), (1, 0), (2, 1) for 18 (neither the minimum nor the maximum).
+_EX08_CYCLE = np.array([[9.0, 2.0, 6.0], [5.0, 9.0, 1.0], [3.0, 7.0, 9.0]])
 
 
-@graded_test("small matrices: 3x3, 2x4, 4x2, 1x1", "test_small", 2.0, hidden=False)
+@graded_test("small matrices: two 3x3, 2x4, 4x2, 1x1", "test_small", 2.0, hidden=False)
 def _ex08_public(rng):
-    mats = [_EX08_C, _EX08_RECT, _EX08_RECT.T.copy(), np.array([[7.0]])]
+    mats = [_EX08_C, _EX08_CYCLE, _EX08_RECT, _EX08_RECT.T.copy(), np.array([[7.0]])]
     return [("hungarian", (C,), {}, assignment_check(C)) for C in mats]
 
 

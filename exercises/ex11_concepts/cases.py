@@ -55,8 +55,14 @@ MISTAKES = [
     ('el-half-factor', {
         'euler_lagrange': ('body', 'return "2*dt*(a + v*dt - b) - lam*Lv"'),
     }),
+    ('el-half-factor', {  # its other form: the factor 2 kept on the smoothness term only
+        'euler_lagrange': ('body', 'return "dt*(a + v*dt - b) - 2*lam*Lv"'),
+    }),
     ('jacobian-sign', {
         'inverse_depth_jacobian': ('body', "return 'Matrix([[f/Z, 0, f*X/Z**2], [0, f/Z, f*Y/Z**2], [0, 0, -1/Z**2]])'"),
+    }),
+    ('jacobian-sign', {  # in one row only
+        'inverse_depth_jacobian': ('body', "return 'Matrix([[f/Z, 0, -f*X/Z**2], [0, f/Z, f*Y/Z**2], [0, 0, -1/Z**2]])'"),
     }),
     ('inverse-depth-sign', {
         'inverse_depth_jacobian': ('body', "return 'Matrix([[f/Z, 0, -f*X/Z**2], [0, f/Z, -f*Y/Z**2], [0, 0, 1/Z**2]])'"),

@@ -97,7 +97,8 @@ def _el_variants() -> dict[str, Any]:
     return {
         "el-laplacian-sign": dt * (a + v * dt - b) + lam * Lv,
         "el-missing-inner-derivative": (a + v * dt - b) - lam * Lv,
-        "el-half-factor": 2 * dt * (a + v * dt - b) - lam * Lv,
+        # the factor 2 of one square kept and the other's dropped: either one
+        "el-half-factor": (2 * dt * (a + v * dt - b) - lam * Lv, dt * (a + v * dt - b) - 2 * lam * Lv),
     }
 
 
@@ -111,12 +112,15 @@ def inverse_depth_jacobian_expected():
 
 def _jac_variants() -> dict[str, Any]:
     J = inverse_depth_jacobian_expected()
-    sign = J.copy()
-    sign[0, 2] = -sign[0, 2]
-    sign[1, 2] = -sign[1, 2]
+    signs = []
+    for rows in ((0, 1), (0,), (1,)):  # the d/dZ sign lost in both rows, or in either one
+        sign = J.copy()
+        for r in rows:
+            sign[r, 2] = -sign[r, 2]
+        signs.append(sign)
     inv = J.copy()
     inv[2, 2] = -inv[2, 2]
-    return {"jacobian-sign": sign, "inverse-depth-sign": inv, "generic-transpose": J.T}
+    return {"jacobian-sign": tuple(signs), "inverse-depth-sign": inv, "generic-transpose": J.T}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -206,11 +210,14 @@ def symbolic_check(
 ) -> Check:
     """The answer (a formula the sandbox evaluated at ``points``) equals ``expected`` there (or is a
     nonzero constant multiple of it, ``up_to_scale``). The grader never parses the answer's text
-    (:mod:`~flowtrack_course.grading.engine.symbolic`)."""
+    (:mod:`~flowtrack_course.grading.engine.symbolic`). ``variants`` maps a mistake's id to its
+    formula, or to a tuple of its forms."""
     import sympy as sp
 
     want = expected_values(expected, names, points)
-    known = {k: expected_values(v, names, points) for k, v in variants.items()}
+    # a mistake may have several forms (a tuple of formulas): each one names it
+    known = {k: [expected_values(f, names, points) for f in (v if isinstance(v, tuple) else (v,))]
+             for k, v in variants.items()}
     shape = expected.shape if isinstance(expected, sp.MatrixBase) else ()
 
     def same(a: FormulaValues, b: FormulaValues) -> bool:
@@ -225,19 +232,23 @@ def symbolic_check(
             return 0.0, Report(f"the answer could not be read: {got.error}")
         if same(got, want):
             return 1.0, "ok"
-        mistakes = [k for k, v in known.items() if same(got, v)]
+        mistakes = [k for k, forms in known.items() if any(same(got, v) for v in forms)]
+        # a formula equal to a variant (or a multiple of the answer) at every random point is as many
+        # independent evaluations: a generic id it shows needs no other call
+        relations = {"generic-transpose": "transpose"} if "generic-transpose" in mistakes else {}
+        evidence = len(points)
         if got.shape != tuple(shape):
             msg = (
                 f"expected a {'matrix of shape ' + str(tuple(shape)) if shape else 'scalar expression'}, got "
                 + (f"a matrix of shape {got.shape}" if got.shape else "a scalar expression")
             )
-            return 0.0, Report(msg, msg, mistakes)
+            return 0.0, Report(msg, msg, mistakes, relations=relations, evidence=evidence)
         if not mistakes and not up_to_scale:
             c = got.proportional(want)
             if c is not None and abs(c + 1) < 1e-9:
-                mistakes = ["generic-sign"]
-            elif shape and c is not None and abs(c - 1) > 1e-9:
-                mistakes = ["generic-scale"]
+                mistakes, relations = ["generic-sign"], {"generic-sign": -1.0}
+            elif shape and c is not None and abs(c - 1) > 1e-9 and abs(c.imag) < 1e-9:
+                mistakes, relations = ["generic-scale"], {"generic-scale": float(c.real)}
         if shape:
             wrong = [str(list(ix)) for ix in got.differing_entries(want)]
             msg = f"not equivalent to the expected matrix: entries {', '.join(wrong)} differ"
@@ -245,7 +256,7 @@ def symbolic_check(
             msg = "not equivalent to the expected expression" + (
                 " (up to a constant factor)" if up_to_scale else ""
             )
-        return 0.0, Report(msg, msg, mistakes)
+        return 0.0, Report(msg, msg, mistakes, relations=relations, evidence=evidence)
 
     return check
 
@@ -309,7 +320,9 @@ def number_check(lo: float, hi: float, variants: dict[str, tuple[float, float]],
             return 1.0, "ok"
         mistakes = [m for m, (a, b) in variants.items() if a <= v <= b and not (a <= lo and hi <= b)]
         direction = "too large" if v > hi else "too small"
-        return 0.0, Report(f"{what} = {v:.6g} is {direction}", f"{what} is {direction}", mistakes)
+        # "your answer" first: "the expected NEES = 0.2 is too small" read like the right value
+        return 0.0, Report(f"your answer for {what}, {v:.6g}, is {direction}",
+                           f"your answer for {what} is {direction}", mistakes)
 
     return check
 

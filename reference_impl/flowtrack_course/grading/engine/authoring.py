@@ -31,7 +31,7 @@ import numpy as np
 
 from .compare import as_float_array, compare_arrays
 from .feedback import Report, compare, safe_error, safe_text
-from .mistakes import Mistake, Variant, checked_of, consistent_mistakes
+from .mistakes import Mistake, Variant, checked_of, consistent_mistakes, relations_of
 from .spec import Call, Dependency, Exercise, GradedTest, Outcome, Scorer
 
 __all__ = [
@@ -99,9 +99,19 @@ def per_call(
         head = f"{n_ok}/{len(checks)} checks passed. "
         public = head + "; ".join(problems[:3]) + more
         safe = head + "; ".join(safe_problems[:3]) + more
-        return score, Report(public, safe, mistakes)
+        return score, Report(public, safe, mistakes, relations=_agreed(messages, mistakes))
 
     return scorer
+
+
+def _agreed(messages: Sequence[Any], mistakes: Sequence[str]) -> dict[str, Any]:
+    """The relation of each generic id of ``mistakes`` (the one every message naming it agrees on)."""
+    out = {}
+    for m in mistakes:
+        rel = next((relations_of(msg)[m] for msg in messages if m in relations_of(msg)), None)
+        if rel is not None:
+            out[m] = rel
+    return out
 
 
 def array_check(
@@ -145,8 +155,11 @@ def tuple_check(parts: Sequence[Check], names: Sequence[str]) -> Check:
                 msgs.append(f"{name}: {msg}")
                 safe.append(f"{name}: {safe_text(msg)}")
         checked = frozenset().union(*(checked_of(m) for m in messages))
-        mistakes = consistent_mistakes(messages, oks)
-        return total / len(parts), Report("; ".join(msgs) or "ok", "; ".join(safe) or "ok", mistakes, checked)
+        # the parts of one result are one call's evidence: a generic id needs them to agree, and
+        # other calls (per_call) to confirm it
+        mistakes = consistent_mistakes(messages, oks, least_evidence=1)
+        return total / len(parts), Report("; ".join(msgs) or "ok", "; ".join(safe) or "ok", mistakes, checked,
+                                          _agreed(messages, mistakes))
 
     return check
 

@@ -23,7 +23,7 @@ True
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,7 +32,7 @@ import numpy as np
 from grading_sandbox import Outcome
 
 from .compare import as_float_array
-from .mistakes import Catalogue, Variant, diagnose, visible_variants
+from .mistakes import Catalogue, Variant, diagnose, generic_relation, shape_hint, visible_variants
 
 __all__ = [
     "Diff",
@@ -53,16 +53,21 @@ class Report(str):
 
     ``mistakes`` is a tuple of catalogue ids, in the order recognised, without repeats; ``checked``
     the catalogued ids that were visible on these inputs (their wrong answer differs from the right
-    one). A test names a mistake only when every call where it was visible matched it
-    (:func:`consistent_mistakes`): one coincidence among several calls names nothing.
+    one); ``relations`` the relation of each generic id (the factor of ``generic-scale``, ...);
+    ``evidence`` the independent evaluations the message stands for (1 for a call). A test names a
+    mistake only when every call where it was visible matched it (:func:`consistent_mistakes`): one
+    coincidence among several calls names nothing, and a generic id needs two calls or more.
     """
 
     safe: str
     mistakes: tuple[str, ...]
     checked: frozenset[str]
+    relations: dict[str, Any]
+    evidence: int
 
     def __new__(
-        cls, public: str, safe: str | None = None, mistakes: Iterable[str] = (), checked: Iterable[str] = ()
+        cls, public: str, safe: str | None = None, mistakes: Iterable[str] = (), checked: Iterable[str] = (),
+        relations: Mapping[str, Any] | None = None, evidence: int = 1,
     ):
         obj = super().__new__(cls, public)
         obj.safe = str(public) if safe is None else str(safe)
@@ -72,7 +77,13 @@ class Report(str):
                 seen.append(m)
         obj.mistakes = tuple(seen)
         obj.checked = frozenset(checked) | frozenset(m for m in seen if not m.startswith("generic-"))
+        obj.relations = dict(relations or {})
+        obj.evidence = int(evidence)
         return obj
+
+    def retext(self, public: str, safe: str | None = None) -> Report:
+        """This report with other texts (the same mistakes, relations and evidence)."""
+        return Report(public, safe, self.mistakes, self.checked, self.relations, self.evidence)
 
 
 def safe_text(message: Any) -> str:
@@ -135,9 +146,10 @@ class Diff:
     safe: str
     mistakes: tuple[str, ...] = ()
     checked: tuple[str, ...] = ()
+    relations: tuple[tuple[str, Any], ...] = ()
 
     def report(self) -> Report:
-        return Report(self.public, self.safe, self.mistakes, self.checked)
+        return Report(self.public, self.safe, self.mistakes, self.checked, dict(self.relations))
 
 
 def compare(
@@ -164,9 +176,10 @@ def compare(
         if got_any is None:
             msg = "the result is not an array of numbers"
             return Diff(False, msg, msg)
-        msg = f"expected an array of shape {expected.shape}, got shape {got_any.shape}"
+        msg = (f"wrong shape: expected an array of shape {expected.shape}, got shape {got_any.shape}"
+               + shape_hint(got_any.shape, expected.shape))
         mistakes = tuple(diagnose(got_any, expected, variants, rtol, atol))
-        return Diff(False, msg, msg, mistakes, checked)
+        return Diff(False, msg, msg, mistakes, checked, _relations(mistakes, got_any, expected, rtol, atol))
     n = expected.size
     fin_e = np.isfinite(expected)
     fin_g = np.isfinite(got)
@@ -181,6 +194,7 @@ def compare(
     if not bad.any():
         return Diff(True, "ok", "ok", (), checked)
     mistakes = tuple(diagnose(got, expected, variants, rtol, atol))
+    relations = _relations(mistakes, got, expected, rtol, atol)
     k = int(bad.sum())
     tolerance = f"rtol={rtol:g}, atol={atol:g}"
     if bad_nonfinite.any():
@@ -215,7 +229,15 @@ def compare(
         )
     if n <= 24:
         public += f"\n    expected {_fmt_array(expected)}\n    got      {_fmt_array(got)}"
-    return Diff(False, public, safe, mistakes, checked)
+    return Diff(False, public, safe, mistakes, checked, relations)
+
+
+def _relations(mistakes, got, expected, rtol, atol) -> tuple[tuple[str, Any], ...]:
+    """``((generic id, relation),)`` when the diagnosis is generic (:func:`~.mistakes.generic_relation`)."""
+    if not mistakes or not mistakes[0].startswith("generic-"):
+        return ()
+    rel = generic_relation(got, expected, rtol, atol)
+    return (rel,) if rel is not None else ()
 
 
 # --------------------------------------------------------------------------------------------------

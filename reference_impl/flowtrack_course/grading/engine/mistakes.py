@@ -15,6 +15,9 @@ reused for another mistake.
 True
 >>> diagnose([[-1.0, -2.0]], [[1.0, 2.0]])
 ['generic-sign']
+
+A generic diagnosis of one call is only a hint: a test names it when two calls or more make it
+with the same relation (:func:`consistent_mistakes`).
 """
 
 from __future__ import annotations
@@ -35,7 +38,11 @@ __all__ = [
     "checked_of",
     "consistent_mistakes",
     "diagnose",
+    "evidence_of",
+    "generic_relation",
     "mistakes_of",
+    "relations_of",
+    "shape_hint",
     "visible_variants",
 ]
 
@@ -127,23 +134,52 @@ def checked_of(message: Any) -> frozenset[str]:
     return frozenset(getattr(message, "checked", ()) or ())
 
 
-def consistent_mistakes(messages: Sequence[Any], passed: Sequence[bool] = ()) -> list[str]:
+def relations_of(message: Any) -> Mapping[str, Any]:
+    """``{generic id: relation}`` of a check's message: the factor of ``generic-scale`` (-1 for
+    ``generic-sign``), ``"transpose"``, the permuted axis of ``generic-permutation``."""
+    return getattr(message, "relations", None) or {}
+
+
+def evidence_of(message: Any) -> int:
+    """How many independent evaluations a check's message stands for (a call: 1; a formula
+    evaluated at k random points: k)."""
+    n = getattr(message, "evidence", 1)
+    return n if isinstance(n, int) and n > 0 else 1
+
+
+def _same_relation(a: Any, b: Any) -> bool:
+    if isinstance(a, float) and isinstance(b, float):
+        return bool(np.isclose(a, b, rtol=1e-6, atol=0.0))
+    return a is not None and a == b
+
+
+def consistent_mistakes(
+    messages: Sequence[Any], passed: Sequence[bool] = (), least_evidence: int = 2
+) -> list[str]:
     """The mistakes of several checks (calls, or parts of a result) that every check agrees with.
 
     A catalogued mistake counts when at least one check matched it and every failing check where it
     was visible (in ``checked``) matched it too (a passing check does not count against it: one
-    member of a family, such as a gate with 2 degrees of freedom, is right for 2-D measurements);
-    generic diagnoses count when any check made them.
+    member of a family, such as a gate with 2 degrees of freedom, is right for 2-D measurements).
+    A generic diagnosis says less (any wrong number is some multiple of the right one), so it
+    counts only when every failing check made it with the same relation (the same factor, the
+    same transposition) and together they stand for at least ``least_evidence`` independent
+    evaluations (:func:`evidence_of`; the parts of one result are one: ``least_evidence=1``).
     """
     named: list[str] = []
     for msg in messages:
         named += [m for m in mistakes_of(msg) if m not in named]
+    failing = [msg for k, msg in enumerate(messages) if not (k < len(passed) and passed[k])]
     out = []
     for m in named:
         if m.startswith("generic-"):
-            out.append(m)
+            if not failing or not all(m in mistakes_of(msg) for msg in failing):
+                continue
+            rels = [relations_of(msg).get(m) for msg in failing]
+            same = all(_same_relation(r, rels[0]) for r in rels)
+            if same and sum(map(evidence_of, failing)) >= least_evidence:
+                out.append(m)
             continue
-        failing = [msg for k, msg in enumerate(messages) if not (k < len(passed) and passed[k])]
         if all(m in mistakes_of(msg) for msg in failing if m in checked_of(msg)):
             out.append(m)
     return out
@@ -175,10 +211,11 @@ def diagnose(
     rtol: float = 1e-6,
     atol: float = 1e-9,
 ) -> list[str]:
-    """Mistake ids explaining ``got`` (wrong) against ``expected``: catalogued first, else generic.
+    """Mistake ids explaining ``got`` (wrong) against ``expected``: catalogued first, else generic
+    (:func:`generic_relation`).
 
     A variant counts only where it differs from the right answer (on these inputs the mistake is
-    visible) and the student's output equals it. Generic diagnoses need a finite, nonzero result.
+    visible) and the student's output equals it.
     """
     got = np.asarray(got, dtype=np.float64)
     expected = np.asarray(expected, dtype=np.float64)
@@ -194,33 +231,71 @@ def diagnose(
             found.append(v.mistake)
     if found:
         return found
+    generic = generic_relation(got, expected, rtol, atol)
+    return [generic[0]] if generic is not None else []
+
+
+def generic_relation(
+    got: np.ndarray, expected: np.ndarray, rtol: float = 1e-6, atol: float = 1e-9
+) -> tuple[str, Any] | None:
+    """The generic mistake relating ``got`` to ``expected`` and the relation, or None.
+
+    ``("generic-sign", -1.0)``, ``("generic-scale", c)`` (``got = c expected``, ``c`` not 0, 1 or
+    -1; only for results with two nonzero entries or more: a single number is a multiple of any
+    other), ``("generic-transpose", "transpose")`` (the last two axes swapped; also for a result of
+    the swapped shape) and ``("generic-permutation", axis)`` (the same rows, or columns, in another
+    order). Needs finite results and a nonzero expected one.
+
+    >>> generic_relation(np.array([2.0, 4.0]), np.array([1.0, 2.0]))
+    ('generic-scale', 2.0)
+    >>> generic_relation(np.array([3.0]), np.array([1.0])) is None
+    True
+    >>> generic_relation(np.ones((5, 3, 2)), np.ones((5, 2, 3)))
+    ('generic-transpose', 'transpose')
+    """
+    got = np.asarray(got, dtype=np.float64)
+    expected = np.asarray(expected, dtype=np.float64)
     if not (np.all(np.isfinite(got)) and np.all(np.isfinite(expected))) or not np.any(expected):
-        return []
+        return None
     tol = dict(rtol=max(rtol, 1e-6), atol=max(atol, 1e-9) * 10)
     if got.shape == expected.shape:
         if np.allclose(got, -expected, **tol):
-            return ["generic-sign"]
+            return ("generic-sign", -1.0)
         e = expected.ravel()
         c = float(np.dot(e, got.ravel()) / np.dot(e, e))
-        if abs(c) > 1e-12 and not np.isclose(c, 1.0) and np.allclose(got, c * expected, **tol):
-            return ["generic-scale"]
-    if expected.ndim >= 2 and got.shape == np.swapaxes(expected, -1, -2).shape:
-        if np.allclose(got, np.swapaxes(expected, -1, -2), **tol) and not np.allclose(
-            expected, np.swapaxes(expected, -1, -2), **tol
-        ):
-            return ["generic-transpose"]
+        if (np.count_nonzero(np.abs(e) > tol["atol"]) >= 2 and abs(c) > 1e-12 and not np.isclose(c, 1.0)
+                and np.allclose(got, c * expected, **tol)):
+            return ("generic-scale", c)
+    if expected.ndim >= 2:
+        swapped = np.swapaxes(expected, -1, -2)
+        symmetric = swapped.shape == expected.shape and np.allclose(expected, swapped, **tol)
+        if got.shape == swapped.shape and not symmetric and np.allclose(got, swapped, **tol):
+            return ("generic-transpose", "transpose")
     if got.shape == expected.shape and expected.ndim >= 1 and expected.shape[0] > 1:
+        from scipy.optimize import linear_sum_assignment
+
         for axis in range(min(expected.ndim, 2)):
             a = np.moveaxis(got, axis, 0).reshape(got.shape[axis], -1)
             b = np.moveaxis(expected, axis, 0).reshape(expected.shape[axis], -1)
             cost = np.abs(a[:, None, :] - b[None, :, :]).max(axis=2)
             scale = tol["atol"] + tol["rtol"] * np.abs(b).max()
-            from scipy.optimize import linear_sum_assignment
-
             r, c = linear_sum_assignment(cost)
             if np.all(cost[r, c] <= scale) and np.any(r != c):
-                return ["generic-permutation"]
-    return []
+                return ("generic-permutation", axis)
+    return None
+
+
+def shape_hint(got_shape: tuple[int, ...], expected_shape: tuple[int, ...]) -> str:
+    """What a wrong shape suggests: the last two axes swapped, or nothing.
+
+    >>> shape_hint((7, 3, 2), (7, 2, 3))
+    ' (the last two axes swapped: transposed?)'
+    """
+    got_shape, expected_shape = tuple(got_shape), tuple(expected_shape)
+    if len(got_shape) >= 2 and got_shape != expected_shape and (
+            (*got_shape[:-2], got_shape[-1], got_shape[-2]) == expected_shape):
+        return " (the last two axes swapped: transposed?)"
+    return ""
 
 
 def visible_variants(
