@@ -17,8 +17,9 @@ public final class CvModel {
     }
 
     /**
-     * Q (4 x 4): white acceleration of variance q, constant over a step:
-     * Q = q * kron(Q1d, I2), Q1d = [[dt^4/4, dt^3/2], [dt^3/2, dt^2]].
+     * Q (4 x 4): white acceleration of variance q on each axis, constant over a step. On one axis,
+     * with the state [p, v], the noise is q * Q1d, Q1d = [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]: place
+     * its entries for the state order [px, py, vx, vy] (which entries of Q are the (px, vx) pair?).
      */
     public static double[][] processNoise(double dt, double q) {
         double[][] Q = new double[4][4];

@@ -16,6 +16,7 @@ from grading_sandbox import SandboxConfigError
 
 from ..engine.results import ExerciseResult
 from ..engine.run import run_exercise
+from ..engine.spec import CannotGradeHere
 
 __all__ = ["check_notebook", "format_report"]
 
@@ -96,7 +97,7 @@ def check_notebook(
     options = GradingOptions().hiding(catalog.root)
     try:
         result = run_exercise(exercise, path, None, public_only=True, options=options)
-    except SandboxConfigError as exc:  # the installation, not the student's work: no score at all
+    except (SandboxConfigError, CannotGradeHere) as exc:  # the installation, not the student's work
         print(f"{exercise.id}: NOT CHECKED\n\n{exc}", file=stream)
         return 3
     hidden = sum(float(t.points) for t in exercise.tests if t.hidden)

@@ -31,7 +31,7 @@ from .jobs import ClassJob, StudentJob
 from .layout import student_id_problem
 from .results import round_score, student_folder, write_atomic
 from .run import check_environment, preload_modules
-from .spec import Exercise
+from .spec import CannotGradeHere, Exercise
 from .student import exercises_hash, grade_student
 
 __all__ = [
@@ -128,7 +128,7 @@ def _grade(job: StudentJob) -> dict:
         if job.options.reuse_sandboxes and job.options.sandbox_factory is None:
             pool = _shared_pool(preload_modules(job.exercises))
         return grade_student(job, sandbox_pool=pool)
-    except SandboxConfigError as exc:  # the grader's environment: reported once for the class
+    except (SandboxConfigError, CannotGradeHere) as exc:  # the grader's environment: said once
         return {"student": job.student, "error": str(exc), "config_error": True}
     except Exception as exc:
         try:

@@ -32,7 +32,7 @@ from .jobs import GradingOptions
 from .mistakes import Catalogue, mistakes_of
 from .results import ExerciseResult, TestResult
 from .seeds import public_seed, student_seed
-from .spec import Exercise, GradedTest
+from .spec import CannotGradeHere, Exercise, GradedTest
 from .text import clip_message
 
 __all__ = ["PRIVATE_PACKAGES", "catalogue_of", "check_environment", "preload_modules", "run_exercise",
@@ -151,6 +151,16 @@ def sandbox_options(exercise: Exercise, options: GradingOptions | None = None) -
     return kwargs
 
 
+def _check_here(exercise: Exercise) -> None:
+    """Raise :class:`~.spec.CannotGradeHere` when this machine lacks what ``exercise`` needs."""
+    why = exercise.environment_problem()
+    if why:
+        raise CannotGradeHere(
+            f"cannot grade {exercise.id} on this machine: {why}. This is the installation, not the "
+            "student's work: install it and run again"
+        )
+
+
 def check_environment(exercises: Sequence[Exercise], options: GradingOptions | None = None) -> int:
     """Start, once per distinct sandbox the ``exercises`` need (their allowlists, blocked modules
     and exposed packages), a child without student code: it imports numpy and every module the
@@ -161,10 +171,14 @@ def check_environment(exercises: Sequence[Exercise], options: GradingOptions | N
     grading_sandbox.SandboxConfigError
         A child cannot import one of them: the grader's environment is broken for that exercise (the
         message has the fix), and grading it would give every student a 0 that is not theirs.
+    CannotGradeHere
+        An exercise needs a toolchain this machine lacks (:meth:`~.spec.Exercise.environment_problem`).
     """
     from grading_sandbox import Sandbox
 
     options = options if options is not None else GradingOptions()
+    for ex in exercises:
+        _check_here(ex)
     seen: set[tuple] = set()
     for ex in exercises:
         kwargs = sandbox_options(ex, options)
@@ -215,9 +229,12 @@ def run_exercise(
     grading_sandbox.SandboxConfigError
         The sandbox's Python cannot import what the exercise allows (before any student code ran):
         the grader's configuration, which must not become the student's score.
+    CannotGradeHere
+        This machine lacks the exercise's toolchain (a compiler, Mathics3): the same.
     """
     if not isinstance(exercise, Exercise):
         raise TypeError(f"exercise must be an Exercise, got {type(exercise).__name__}")
+    _check_here(exercise)
     options = options if options is not None else GradingOptions()
     tests = [t for t in exercise.tests if not (public_only and t.hidden)]
     result = ExerciseResult(exercise.id, exercise.title, exercise.notebook, catalogue=catalogue_of(exercise))

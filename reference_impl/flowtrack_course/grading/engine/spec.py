@@ -9,9 +9,9 @@ the fraction of the points earned and a message. Expected values are computed he
 reference, and never sent to the child.
 
 What makes one kind of exercise different from another (a notebook, a source file in another
-language) is a method of :class:`Exercise`: :meth:`~Exercise.extract_cells`, :attr:`~Exercise.spawns`
-and :meth:`~Exercise.source_files`, which a subclass overrides (:class:`Gradable` is the interface
-the engine relies on).
+language) is a method of :class:`Exercise`: :meth:`~Exercise.extract_cells`, :attr:`~Exercise.spawns`,
+:meth:`~Exercise.source_files` and :meth:`~Exercise.environment_problem`, which a subclass overrides
+(:class:`Gradable` is the interface the engine relies on).
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Call",
+    "CannotGradeHere",
     "Dependency",
     "Exercise",
     "Gradable",
@@ -46,6 +47,11 @@ __all__ = [
 
 
 Scorer = Callable[[Sequence[Outcome]], tuple[float, str]]
+
+
+class CannotGradeHere(RuntimeError):
+    """This machine lacks what grading an exercise needs (a compiler, an interpreter): the
+    installation's problem, said as such, never a student's score (:meth:`Exercise.environment_problem`)."""
 
 
 @dataclass(frozen=True)
@@ -126,6 +132,11 @@ class Exercise:
         change re-grades finished students)."""
         return []
 
+    def environment_problem(self) -> str:
+        """What this machine lacks to grade the exercise, with how to install it ("" when nothing:
+        a notebook needs only the sandbox)."""
+        return ""
+
 
 @runtime_checkable
 class Gradable(Protocol):
@@ -149,3 +160,5 @@ class Gradable(Protocol):
     def extract_cells(self, path: Path) -> tuple[list[tuple[str, str]], list[str]]: ...
 
     def source_files(self) -> list[Path]: ...
+
+    def environment_problem(self) -> str: ...

@@ -36,7 +36,7 @@ from .results import (
     write_atomic,
 )
 from .run import preload_modules, run_exercise
-from .spec import Exercise
+from .spec import CannotGradeHere, Exercise
 
 __all__ = [
     "exercises_hash",
@@ -266,7 +266,7 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
         for ex in exercises:
             try:
                 r = run_exercise(ex, notebooks[ex.id], job.student, options=options, sandbox_factory=factory)
-            except SandboxConfigError:  # the grader's environment: no results for this student
+            except (SandboxConfigError, CannotGradeHere):  # the grader's environment: no results
                 raise
             except Exception as exc:  # one broken exercise must not lose the others
                 r = ExerciseResult(ex.id, ex.title, ex.notebook)

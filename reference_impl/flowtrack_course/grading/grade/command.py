@@ -30,6 +30,7 @@ from grading_sandbox import SandboxConfigError
 
 from ..engine.classrun import run_class, uniform_failures
 from ..engine.jobs import ClassJob
+from ..engine.spec import CannotGradeHere
 
 __all__ = ["GradeRun", "grade_class", "run_grade"]
 
@@ -136,7 +137,7 @@ def run_grade(
     job = replace(job, exercises=exercises, renamed=renamed, ignored=ignored, log=log)
     try:
         rows = grade_class(job, assignment=assignment, roster=roster_map)
-    except SandboxConfigError as exc:  # found before any student was graded
+    except (SandboxConfigError, CannotGradeHere) as exc:  # found before any student was graded
         return GradeRun(3, reason=f"{exc}\n(graded no student: nothing was written)")
     out = job.out
     files = {"grades": out / "grades.csv", "gradebook": out / "gradebook.db"}

@@ -102,7 +102,9 @@ def run_submission(
     except Exception as exc:  # Gradescope must get a results.json
         from grading_sandbox import SandboxConfigError
 
-        if isinstance(exc, SandboxConfigError):  # the autograder's image, not the student's work
+        from ..engine.spec import CannotGradeHere
+
+        if isinstance(exc, (SandboxConfigError, CannotGradeHere)):  # the image, not the student's work
             message = f"autograder configuration error: {exc}"
         else:
             message = f"autograder error: {type(exc).__name__}: {exc}"

@@ -25,7 +25,11 @@ the points is the mean over cases of the share of correct outputs. A wrong outpu
 the engine's one mistake matcher (:func:`~flowtrack_course.grading.engine.mistakes.diagnose`): one
 of the problem's catalogued mistakes, or a generic one the problem allows (``generic-sign``,
 ``generic-transpose``, ``generic-scale``); each adds the course catalogue's line
-``mistake <id>: <message>`` (the same id and message as in the notebooks) to the message.
+``mistake <id>: <message>`` (the same id and message as in the notebooks) to the feedback. A hidden
+test's feedback says why it failed in the grader's words: a build that failed (the number of
+compiler errors and the line of the first), a limit, a case the program reported an error for, the
+worst relative error of a wrong output (:func:`program_error`); never the compiler's or the
+program's own text, which the student's code controls.
 """
 
 from __future__ import annotations
@@ -39,11 +43,13 @@ from pathlib import Path
 import numpy as np
 
 from ... import polyglot
+from ...polyglot.base import ToolchainMissing
 from ...polyglot.problems import GRADED_PROBLEMS, Problem
 from ...polyglot.toolchains import GRADED_LANGUAGES, TOOLCHAINS, Toolchain
 from ...polyglot.vectors import dumps
 from ..engine.discovery import ExerciseSet
-from ..engine.mistakes import Catalogue, Mistake, Variant, diagnose
+from ..engine.feedback import Report, compare, safe_error
+from ..engine.mistakes import Catalogue, Mistake, Variant, consistent_mistakes
 from ..engine.spec import Call, Exercise, GradedTest, Outcome, as_float_array
 from .driver import driver_cell
 
@@ -55,6 +61,7 @@ __all__ = [
     "language_catalogue",
     "language_exercises",
     "materialise",
+    "program_error",
     "public_vectors",
     "strip_solutions",
 ]
@@ -129,6 +136,15 @@ class LanguageExercise(Exercise):
         files += sorted(p for p in (stack / "files" / self.language).rglob("*") if p.is_file())
         return files
 
+    def environment_problem(self) -> str:
+        """The language's toolchain when this machine lacks it (what is missing and how to install
+        it), else "": grading cannot happen here, and that is never the student's score."""
+        try:
+            self.toolchain.check()
+        except ToolchainMissing as exc:
+            return str(exc)
+        return ""
+
     def harness_blobs(self) -> dict[str, bytes]:
         """The harness artefacts built from the grader's own sources (the C++ object, the Java class),
         cached in the sandbox's cache (:func:`grading_sandbox.cache.cache_root`), which every
@@ -174,8 +190,9 @@ def _matches(got: np.ndarray, want: np.ndarray, rtol: float, atol: float) -> boo
     return got.shape == want.shape and bool(np.all(np.abs(got - want) <= atol + rtol * np.abs(want)))
 
 
-def _mistake(problem: Problem, case: dict, name: str, got: np.ndarray, want: np.ndarray) -> str | None:
-    """The catalogued mistake (or allowed generic one) that explains output ``name`` of one case."""
+def _diagnosis(problem: Problem, case: dict, name: str, got: np.ndarray, want: np.ndarray) -> Report:
+    """What one wrong output of one case shows: the problem's catalogued mistakes, or a generic one
+    the problem allows, with its relation (a :class:`~..engine.feedback.Report` of no text)."""
     variants = []
     for mid, wrong in problem.mistakes:
         try:
@@ -184,28 +201,89 @@ def _mistake(problem: Problem, case: dict, name: str, got: np.ndarray, want: np.
             alt = None
         if alt is not None:
             variants.append(Variant(mid, np.asarray(alt, dtype=float)))
-    found = [m for m in diagnose(got, want, variants, problem.rtol, problem.atol)
-             if not m.startswith("generic-") or m in problem.generic]
-    return found[0] if found else None
+    d = compare(Outcome(True, got.tolist()), want, rtol=problem.rtol, atol=problem.atol, variants=variants)
+    keep = [m for m in d.mistakes if not m.startswith("generic-") or m in problem.generic]
+    return Report("", "", keep, d.checked, {m: r for m, r in d.relations if m in keep})
+
+
+_BUILD_FAILED = re.compile(r"build failed \(([\w.+-]+), exit (-?\d+)\)")
+_TIMED_OUT = re.compile(r"\b(the build|the program) timed out after ([0-9.]+) s")
+_TOO_MUCH = re.compile(r"\b(the build|the program) printed more than (\d+) bytes")
+_NO_RESULT = re.compile(r"the program printed no result \(exit (-?\d+)\)")
+
+
+def program_error(error: str, source_name: str) -> str:
+    """A failed run of the student's program in words a hidden test may show: the grader's own
+    facts (the build failed, how many errors and the line of the first in ``source_name``; a time
+    or output limit; no result and the exit status), never a compiler's or a program's text, which
+    the student's code controls.
+
+    >>> program_error("Traceback ...\\nRuntimeError: build failed (g++, exit 1):\\n"
+    ...               "cv_model.cpp:9:5: error: expected ';'\\ncv_model.cpp:12:1: error: x", "cv_model.cpp")
+    'the build failed (g++, exit status 1): 2 compiler errors, the first at line 9 of cv_model.cpp'
+    >>> program_error("timed out after 50 s", "a.cpp")
+    'timed out after 50 s'
+    """
+    text = str(error or "")
+    if "Traceback" not in text:  # the sandbox's own reasons (limits, a crash): the grader's words
+        return safe_error(text)
+    m = _BUILD_FAILED.search(text)
+    if m:
+        tool, rc = m.group(1), int(m.group(2))
+        log = text[m.end():]
+        errors = [ln for ln in log.splitlines() if re.search(r"\berror\b", ln)]
+        first = re.search(rf"{re.escape(source_name)}:(\d+)(?::\d+)?:\s*(?:fatal )?error", log)
+        out = f"the build failed ({tool}, exit status {rc})"
+        if errors:
+            out += f": {len(errors)} compiler error{'s' if len(errors) != 1 else ''}"
+        if first:
+            out += f", the first at line {int(first.group(1))} of {source_name}"
+        return out
+    limits = ((_TIMED_OUT, "{0} timed out after {1} s"), (_TOO_MUCH, "{0} printed more than {1} bytes"))
+    for pattern, words in limits:
+        m = pattern.search(text)
+        if m:
+            return words.format(m.group(1), m.group(2))
+    m = _NO_RESULT.search(text)
+    if m:
+        return f"the program printed no result (exit status {int(m.group(1))})"
+    return f"the program failed ({safe_error(text)})"
+
+
+def _relative_error(got: np.ndarray, want: np.ndarray, atol: float) -> str:
+    """The worst relative error of a wrong output, in words (never a value of ``want``)."""
+    err = np.abs(got - want)
+    nonzero = np.abs(want) > atol
+    parts = []
+    if np.any(nonzero):
+        parts.append(f"largest relative error {float(np.max(err[nonzero] / np.abs(want[nonzero]))):.2g}")
+    if np.any(~nonzero & (err > atol)):
+        parts.append("a nonzero value where zero is expected")
+    return ", ".join(parts) or "differs"
 
 
 def _score_cases(
     problem: Problem, cases: list[dict], expected: list[dict], outcome: Outcome, show: bool,
-    *, catalogue: Catalogue,
-) -> tuple[float, str]:
+    *, catalogue: Catalogue, source_name: str = "",
+) -> tuple[float, Report]:
     """The fraction of the points and the message of one call: the mean over cases of the share of
-    right outputs; the message names the failing cases (``show``: a public test) and adds the line
-    of each mistake recognised (its message from ``catalogue``)."""
+    right outputs. The message (a :class:`~..engine.feedback.Report`) names the failing cases: in
+    its public text with what the program said, in its hidden-safe text (``show`` false: a hidden
+    test) in the grader's words only (:func:`program_error`; the worst relative error, never an
+    expected value); it carries the mistakes recognised (their lines come from ``catalogue``)."""
     if not outcome.ok:
-        return 0.0, outcome.error or "the program failed"
+        err = outcome.error or "the program failed"
+        return 0.0, Report(err, program_error(err, source_name))
     value = outcome.value if isinstance(outcome.value, dict) else {}
-    fractions, notes, mistakes = [], [], {}
+    fractions, notes, safe_notes, diagnoses = [], [], [], []
     for case, exp in zip(cases, expected):
         res = value.get(case["id"])
         if not isinstance(res, dict) or not res.get("ok") or not isinstance(res.get("value"), dict):
             err = res.get("error") if isinstance(res, dict) else None
             fractions.append(0.0)
             notes.append(f"case {case['id']}: {err or 'no result'}")
+            said = "the program reported an error" if err else "no result"
+            safe_notes.append(f"case {case['id']}: {said}")
             continue
         outputs = res["value"]
         good = 0
@@ -214,36 +292,37 @@ def _score_cases(
             got = as_float_array(outputs.get(name), want.shape)
             if got is None:
                 shape = as_float_array(outputs.get(name))
-                notes.append(
-                    f"case {case['id']}: {name} "
-                    + (
-                        "missing or not numbers"
-                        if shape is None
-                        else f"has shape {shape.shape}, expected {want.shape}"
-                    )
+                note = f"case {case['id']}: {name} " + (
+                    "missing or not numbers" if shape is None
+                    else f"has shape {shape.shape}, expected {want.shape}"
                 )
+                notes.append(note)
+                safe_notes.append(note)
                 continue
             if _matches(got, want, problem.rtol, problem.atol):
                 good += 1
                 continue
             worst = float(np.max(np.abs(got - want)))
             notes.append(f"case {case['id']}: {name} differs (largest error {worst:.3g})")
-            found = _mistake(problem, case, name, got, want)
-            if found and found in catalogue:
-                mistakes.setdefault(found, catalogue.line(found))
+            how = _relative_error(got, want, problem.atol)
+            safe_notes.append(f"case {case['id']}: {name} differs ({how})")
+            diagnoses.append(_diagnosis(problem, case, name, got, want))
         fractions.append(good / max(1, len(exp)))
     score = float(np.mean(fractions)) if fractions else 0.0
     n_ok = sum(f >= 1.0 for f in fractions)
     if score >= 1.0:
-        return 1.0, f"all {len(cases)} cases correct"
-    lines = [f"{n_ok}/{len(cases)} cases correct"]
-    if show:
-        lines += notes[:6] + (["..."] if len(notes) > 6 else [])
-    lines += list(mistakes.values())
-    return score, "\n".join(lines)
+        return 1.0, Report(f"all {len(cases)} cases correct")
+    # every wrong output agrees on a catalogued mistake where it shows; a generic one needs two
+    mistakes = [m for m in consistent_mistakes(diagnoses) if m in catalogue]
+    head = f"{n_ok}/{len(cases)} cases correct"
+    public = [head] + (notes[:6] + (["..."] if len(notes) > 6 else []) if show else [])
+    safe = [head, *safe_notes[:6], *(["..."] if len(safe_notes) > 6 else [])]
+    return score, Report("\n".join(public), "\n".join(safe), mistakes)
 
 
-def _test(problem: Problem, hidden: bool, catalogue: Catalogue, timeout: float) -> GradedTest:
+def _test(
+    problem: Problem, hidden: bool, catalogue: Catalogue, timeout: float, source_name: str = ""
+) -> GradedTest:
     def build(rng: np.random.Generator):
         chosen = problem.hidden_cases(rng) if hidden else problem.public_cases()
         doc = problem.document(chosen, expected=False)
@@ -255,7 +334,8 @@ def _test(problem: Problem, hidden: bool, catalogue: Catalogue, timeout: float) 
         def scorer(outcomes: Sequence[Outcome]) -> tuple[float, str]:
             if len(outcomes) != 1:
                 return 0.0, "no result from the sandbox"
-            return _score_cases(problem, cases, expected, outcomes[0], show=not hidden, catalogue=catalogue)
+            return _score_cases(problem, cases, expected, outcomes[0], show=not hidden, catalogue=catalogue,
+                                source_name=source_name)
 
         return [Call("run_cases", (doc,))], scorer
 
@@ -277,7 +357,8 @@ def _exercise(language: str, problem: Problem, owner: str, catalogue: Catalogue)
         blocked=tuple(b for b in BLOCKED if b != "scipy.optimize") if language == "mathics" else BLOCKED,
         allowed=MATHICS_ALLOWED if language == "mathics" else (),
         packages=("flowtrack",),
-        tests=(_test(problem, False, catalogue, timeout), _test(problem, True, catalogue, timeout)),
+        tests=(_test(problem, False, catalogue, timeout, tc.source_name(problem.name)),
+               _test(problem, True, catalogue, timeout, tc.source_name(problem.name))),
         mistakes=tuple(catalogue[mid] for mid, _ in problem.mistakes),
         catalogue=catalogue,
         language=language,

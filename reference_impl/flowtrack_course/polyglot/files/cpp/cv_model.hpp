@@ -2,6 +2,8 @@
 #pragma once
 #include <Eigen/Dense>
 
-// Fill F (state transition over dt) and Q (process noise of white acceleration with variance q,
-// piecewise constant over a step: Q = q * kron(Q1d, I2), Q1d = [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]).
+// Fill F (the state transition over dt) and Q (the process noise: a white acceleration of variance q
+// on each axis, constant over a step). On one axis, with the state [p, v], that noise is
+// q * Q1d, Q1d = [[dt^4/4, dt^3/2], [dt^3/2, dt^2]]: place its entries for the state order
+// [px, py, vx, vy] (which entries of Q are the (px, vx) pair?).
 void cv_model(double dt, double q, Eigen::Matrix4d& F, Eigen::Matrix4d& Q);
