@@ -76,7 +76,8 @@ class StudentJob:
 
     ``exercises`` are the exercises to grade; ``exercises_hash`` (computed when None) identifies
     them in ``results.json``; ``renamed`` (``{exercise id: path in the folder}``) grades accepted
-    renamed copies of missing notebooks (``--accept-renamed``).
+    renamed copies of missing notebooks (``--accept-renamed``); ``notes`` are told the student (e.g.
+    the files of their folder outside the assignment, which are not graded).
     """
 
     student: str
@@ -86,6 +87,7 @@ class StudentJob:
     options: GradingOptions = field(default_factory=GradingOptions)
     exercises_hash: str | None = None
     renamed: Mapping[str, str] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -100,7 +102,10 @@ class ClassJob:
         Where the exercises come from (:class:`~.catalog.Catalog`); needed when ``exercises`` is
         None, and for ``jobs > 1`` (the workers look the exercises up by id in it).
     exercises : tuple of Exercise or None
-        The exercises graded; None: the catalog's for this class (:meth:`~.catalog.Catalog.for_class`).
+        The exercises graded (the columns of ``grades.csv``); None: the catalog's assigned ones
+        (:meth:`~.catalog.Catalog.for_class`). With a catalog, each student is graded on those of
+        them the catalog assigns that student (:meth:`~.catalog.Catalog.for_student`; exercises
+        the catalog does not know are graded for everyone).
     jobs : int
         Students graded in parallel (worker processes).
     options : GradingOptions

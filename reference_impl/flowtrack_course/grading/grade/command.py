@@ -22,7 +22,7 @@ import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..engine.classrun import run_class
+from ..engine.classrun import OUTPUT_FILES, run_class
 from ..engine.jobs import ClassJob
 
 __all__ = ["GradeRun", "grade_class", "run_grade"]
@@ -37,7 +37,7 @@ def grade_class(job: ClassJob, *, assignment: str = "flowtrack", roster: dict | 
     from ..export.gradebook import write_gradebook
 
     rows, exercises, students = run_class(job)
-    write_gradebook(job.out / "gradebook.db", exercises, job.out, students, assignment=assignment,
+    write_gradebook(job.out / OUTPUT_FILES["gradebook"], exercises, job.out, students, assignment=assignment,
                     roster=roster)
     return rows
 
@@ -132,7 +132,7 @@ def run_grade(
     job = replace(job, exercises=exercises, renamed=renamed, log=log)
     rows = grade_class(job, assignment=assignment, roster=roster_map)
     out = job.out
-    files = {"grades": out / "grades.csv", "gradebook": out / "gradebook.db"}
+    files = {"grades": out / OUTPUT_FILES["grades"], "gradebook": out / OUTPUT_FILES["gradebook"]}
     files["misconceptions"], files["class_report"] = write_class_outputs(out, rows, exercises)
     summary = []
     graded = sum(1 for r in rows if not r.get("skipped") and "error" not in r)
@@ -169,7 +169,7 @@ def run_grade(
         path, warnings = export_lms(
             lms,
             files["grades"],
-            out / f"{lms}.csv",
+            out / OUTPUT_FILES[lms],
             roster=roster_map,
             mode=lms_mode,
             assignment=assignment,
