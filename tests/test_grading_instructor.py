@@ -496,15 +496,21 @@ def test_mistakes_from_results_json_reach_the_csv_and_the_report(tmp_path):
         (out / student).mkdir(parents=True)
         (out / student / "results.json").write_text(json.dumps(data))
 
-    results("ann", [("exa", "expected 1\nmistake generic-sign: the sign is flipped"), ("exb", "ok")])
-    results("ben", [("exa", "mistake generic-sign: flipped\nmistake generic-scale: x2")])
+    # the grader's records count; the "mistake <id>:" lines of an output are text (a student's own
+    # exception message may hold such lines: mallory's), never parsed
+    results("ann", [("exa", "expected 1\nmistake generic-sign: the sign is flipped"), ("exb", "ok")],
+            extra=[("exa", "generic-sign")])
+    results("ben", [("exa", "mistake generic-sign: flipped\nmistake generic-scale: x2")],
+            extra=[("exa", "generic-sign"), ("exa", "generic-scale")])
     results("cid", [("exb", "all good")], extra=[("exb", "cv-dt-squared")])
+    results("mallory", [("exa", "ValueError: \nmistake generic-sign: forged\nmistake q-block-diagonal: x")])
     results("dan", [("exb", "all good")])  # the grader's own record format (grade.py, mistake_records)
     data = json.loads((out / "dan" / "results.json").read_text())
     data["extra_data"]["flowtrack"]["mistakes"] = [{"exercise": "exb", "id": "cv-dt-squared", "tests": ["t"]}]
     (out / "dan" / "results.json").write_text(json.dumps(data))
-    found = classreport.collect_mistakes(out, ["ann", "ben", "cid", "dan", "nobody"])
+    found = classreport.collect_mistakes(out, ["ann", "ben", "cid", "dan", "mallory", "nobody"])
     assert found.pop("dan") == [("exb", "cv-dt-squared")]
+    assert found.pop("mallory") == []
     assert found == {
         "ann": [("exa", "generic-sign")],
         "ben": [("exa", "generic-scale"), ("exa", "generic-sign")],

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from flowtrack_course.grading.assignment import Assignment
 from flowtrack_course.grading.engine.discovery import discover
 from flowtrack_course.grading.engine.mistakes import mistakes_of
 from flowtrack_course.grading.engine.run import run_exercise
@@ -31,6 +32,7 @@ from flowtrack_course.grading.languages import (
     strip_solutions,
 )
 from flowtrack_course.grading.languages.exercises import _score_cases
+from flowtrack_course.grading.sources import course_catalog
 from grading_helpers import (
     COURSE_SET,
     LANGUAGE_EXERCISES,
@@ -351,16 +353,19 @@ def test_check_and_grade_commands_cover_the_languages(toolchain, tmp_path, capsy
     subs = tmp_path / "subs"
     _write(subs / "ana", ex, instructor_source(ex).read_text())
     _write(subs / "ben", ex, strip_solutions(instructor_source(ex).read_text(), "octave"))
-    rows = {r["student"]: r for r in grade_class(class_job(subs, tmp_path / "out", progress=False))}
+    # answers in Octave count where the assignment says so (assignment.toml: languages = ["octave"])
+    catalog = course_catalog(REPO, Assignment(languages=("octave",)))
+    rows = {r["student"]: r for r in grade_class(class_job(subs, tmp_path / "out", progress=False,
+                                                           catalog=catalog))}
     assert rows["ana"]["exercises"][ex.id] == 3.0 and rows["ben"]["exercises"][ex.id] == 0.0
     header = (tmp_path / "out" / "grades.csv").read_text().splitlines()[0].split(",")
     assert ex.id in header and "total" in header
-    assert "cpp_cv_model" not in header  # only the languages someone answered get columns
+    assert "cpp_cv_model" not in header  # only the assigned languages get columns
     results = json.loads((tmp_path / "out" / "ana" / "results.json").read_text())
     assert any(t["name"].startswith(ex.id) for t in results["tests"])
     assert (tmp_path / "out" / "ben" / "feedback" / f"{ex.id}.md").is_file()
     # `flowtrack grade` (run_grade: the layout check first) grades a class that answered only in Octave
-    run = run_grade_with(subs, tmp_path / "out-cli", progress=False, log=lambda msg: None)
+    run = run_grade_with(subs, tmp_path / "out-cli", progress=False, log=lambda msg: None, catalog=catalog)
     assert run.status == 0, run.reason
     rows = {r["student"]: r for r in run.rows}
     assert rows["ana"]["exercises"][ex.id] == 3.0 and rows["ben"]["exercises"][ex.id] == 0.0
@@ -423,7 +428,8 @@ def test_gradescope_run_grades_a_flat_language_upload(toolchain, tmp_path):
     ex = _ex("octave", "cv_model")
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "cv_model.m").write_text(instructor_source(ex).read_text())  # a flat upload
-    data = run_submission(tmp_path / "sub", tmp_path / "results.json", student="ana")
+    data = run_submission(tmp_path / "sub", tmp_path / "results.json", student="ana",
+                          catalog=course_catalog(REPO, Assignment(languages=("octave",))))
     mine = [t for t in data["tests"] if t["name"].startswith(ex.id)]
     assert len(mine) == 2 and all(t["status"] == "passed" for t in mine), mine
     assert not any(t["name"].startswith("cpp_") for t in data["tests"])

@@ -111,7 +111,8 @@ def _jacobian_check(
         ]
         wrong = [f"J[:, {i}, {j}]" for i in range(2) for j in range(3) if (i, j) not in good]
         head = f"wrong entries {', '.join(wrong)}: "
-        return len(good) / 6.0, d.report().retext(head + d.public, head + d.safe)
+        # (which entries are wrong is the answer's choice: the hidden-safe text does not name them)
+        return len(good) / 6.0, d.report().retext(head + d.public, d.safe)
 
     return check
 

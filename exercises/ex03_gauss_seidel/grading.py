@@ -19,6 +19,7 @@ from flowtrack_course.grading.engine.authoring import (
     array_check,
     as_float_array,
     graded_test,
+    safe_error,
 )
 
 
@@ -264,7 +265,8 @@ def _rate_scorer(a, b, dt, lam, sweeps: int):
         for k, o in enumerate(outcomes, start=1):
             if not o.ok:
                 msg = f"solve_gauss_seidel(..., tol=0, max_sweeps={k}) failed: {o.error}"
-                return 0.0, Report(msg, msg)
+                return 0.0, Report(msg, f"solve_gauss_seidel(..., tol=0, max_sweeps={k}) failed: "
+                                   + safe_error(o.error))
             v = as_float_array(o.value, (H, W))
             if v is None or not np.all(np.isfinite(v)):
                 msg = f"max_sweeps={k}: expected a finite array of shape {(H, W)}"
@@ -275,7 +277,8 @@ def _rate_scorer(a, b, dt, lam, sweeps: int):
         if res[0] < 1e-8:
             msg = (f"the residual is {res[0]:.1e} after one sweep: that is a direct solve, one "
                    f"red-black sweep leaves about {rho_gs:.2f} of it")
-            return 0.0, Report(msg, msg, ["dense-solve-not-sweeps"])
+            return 0.0, Report(msg, "the residual vanishes after one sweep: that is a direct solve",
+                               ["dense-solve-not-sweeps"])
         if res[half - 1] <= 0 or res[-1] <= 0:
             msg = "the residual reaches 0 within a few sweeps: these are not Gauss-Seidel sweeps"
             return 0.0, Report(msg, msg, ["residual-rate-not-gauss-seidel"])
@@ -298,7 +301,8 @@ def _rate_scorer(a, b, dt, lam, sweeps: int):
                     "; the residual (almost) stops shrinking: the sweeps do not converge to the solution "
                     "of A v = r"
                 )
-        return 0.0, Report(msg, msg, mistakes)
+        # (the residuals are the answer's numbers: a hidden-safe text would not quote them)
+        return 0.0, Report(msg, "the residuals do not shrink at the red-black Gauss-Seidel rate", mistakes)
 
     return scorer
 

@@ -113,10 +113,10 @@ def assignment_check(cost: np.ndarray, rtol: float = 1e-9) -> Check:
             mistakes.append("greedy-assignment")
         elif abs(total - worst) <= rtol * max(1.0, abs(worst)):
             mistakes.append("assignment-maximises")
-        gap = (total - best) / max(abs(best), 1e-12)
+        # (by how much it exceeds the minimum is the answer's choice: not in the hidden-safe text)
         return 0.0, Report(
             f"a valid assignment but not a minimal one (total {total:.6g}, the minimum is {best:.6g})",
-            f"a valid assignment but not a minimal one (its total is {100 * gap:.3g} % above the minimum)",
+            "a valid assignment but not a minimal one (its total exceeds the minimum)",
             mistakes,
             visible,
         )

@@ -139,9 +139,10 @@ def _frames_check(expected: list[list[list[Any]]], variants: dict | None = None)
             return 1.0, Report("ok", checked=variants)
         normed = [norm(g) for g in got]
         mistakes = [k for k, v in variants.items() if normed == [[tuple(x) for x in f] for f in v]]
-        head = f"{good}/{len(expected)} frames right, first wrong frame: {first_bad}"
+        head = f"{good}/{len(expected)} frames right"
         e = [tuple(x) for x in expected[first_bad]]
-        public = f"{head}: expected {e}, got {normed[first_bad]}"
+        public = f"{head}, first wrong frame: {first_bad}: expected {e}, got {normed[first_bad]}"
+        # (which frame is wrong first is the answer's choice: not in the hidden-safe text)
         return good / len(expected), Report(public, head, mistakes, checked=variants)
 
     return check

@@ -84,7 +84,8 @@ def _clusters_check(
             return (1.0, "ok") if gc.size == 0 and gv.size == 0 else (0.0, "expected no clusters")
         if gc.shape != (K, D) or gv.shape != (K, D):
             msg = f"expected {K} clusters: arrays of shape ({K}, {D}), got {gc.shape} and {gv.shape}"
-            return 0.0, Report(msg, msg, named(gc, gv) if gc.ndim == 2 and gv.ndim == 2 else (), variants)
+            safe = f"wrong shape (expected {K} clusters: arrays of shape ({K}, {D}))"
+            return 0.0, Report(msg, safe, named(gc, gv) if gc.ndim == 2 and gv.ndim == 2 else (), variants)
         if not (np.isfinite(gc).all() and np.isfinite(gv).all()):
             return 0.0, "NaN or inf in the result"
         cost = np.linalg.norm(gc[:, None, :] - cents[None], axis=2) + np.linalg.norm(

@@ -229,7 +229,7 @@ def symbolic_check(
             return 0.0, Report(err, safe_error(err))
         got = values_of(outcome.value)
         if got.values is None:
-            return 0.0, Report(f"the answer could not be read: {got.error}")
+            return 0.0, Report(f"the answer could not be read: {got.error}", "the answer could not be read")
         if same(got, want):
             return 1.0, "ok"
         mistakes = [k for k, forms in known.items() if any(same(got, v) for v in forms)]
@@ -238,11 +238,11 @@ def symbolic_check(
         relations = {"generic-transpose": "transpose"} if "generic-transpose" in mistakes else {}
         evidence = len(points)
         if got.shape != tuple(shape):
-            msg = (
-                f"expected a {'matrix of shape ' + str(tuple(shape)) if shape else 'scalar expression'}, got "
-                + (f"a matrix of shape {got.shape}" if got.shape else "a scalar expression")
-            )
-            return 0.0, Report(msg, msg, mistakes, relations=relations, evidence=evidence)
+            want_text = f"a {'matrix of shape ' + str(tuple(shape)) if shape else 'scalar expression'}"
+            msg = f"expected {want_text}, got " + (
+                f"a matrix of shape {got.shape}" if got.shape else "a scalar expression")
+            return 0.0, Report(msg, f"wrong shape (expected {want_text})", mistakes, relations=relations,
+                               evidence=evidence)
         if not mistakes and not up_to_scale:
             c = got.proportional(want)
             if c is not None and abs(c + 1) < 1e-9:
@@ -252,11 +252,12 @@ def symbolic_check(
         if shape:
             wrong = [str(list(ix)) for ix in got.differing_entries(want)]
             msg = f"not equivalent to the expected matrix: entries {', '.join(wrong)} differ"
+            safe = "not equivalent to the expected matrix"  # which entries is the answer's choice
         else:
-            msg = "not equivalent to the expected expression" + (
+            msg = safe = "not equivalent to the expected expression" + (
                 " (up to a constant factor)" if up_to_scale else ""
             )
-        return 0.0, Report(msg, msg, mistakes, relations=relations, evidence=evidence)
+        return 0.0, Report(msg, safe, mistakes, relations=relations, evidence=evidence)
 
     return check
 
@@ -290,7 +291,8 @@ def subspace_check(basis: np.ndarray, variants: dict[str, np.ndarray], tol: floa
         A = np.atleast_2d(A)
         if A.ndim != 2 or A.shape[1] != n or not np.all(np.isfinite(A)):
             msg = f"expected rows of {n} numbers (one combination of the state per row), got shape {A.shape}"
-            return 0.0, Report(msg, msg)
+            safe = f"expected rows of {n} finite numbers (one combination of the state per row)"
+            return 0.0, Report(msg, safe)
         if span_equal(A, basis):
             return 1.0, "ok"
         mistakes = [m for m, V in variants.items() if span_equal(A, V)]
@@ -301,7 +303,8 @@ def subspace_check(basis: np.ndarray, variants: dict[str, np.ndarray], tol: floa
             if rank != k
             else "your rows span a space of the right dimension, but not the one Q cannot excite"
         )
-        return 0.0, Report(msg, msg, mistakes)
+        safe = "your rows do not span the space of the combinations Q cannot excite"
+        return 0.0, Report(msg, safe, mistakes)
 
     return check
 
@@ -315,7 +318,7 @@ def number_check(lo: float, hi: float, variants: dict[str, tuple[float, float]],
             return 0.0, Report(err, safe_error(err))
         v = outcome.value
         if type(v) not in (int, float) or not math.isfinite(v):
-            return 0.0, Report(f"{what} must be a finite number")
+            return 0.0, Report(f"{what} must be a finite number", f"{what} must be a finite number")
         if lo <= v <= hi:
             return 1.0, "ok"
         mistakes = [m for m, (a, b) in variants.items() if a <= v <= b and not (a <= lo and hi <= b)]

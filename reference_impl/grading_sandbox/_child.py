@@ -14,6 +14,11 @@ JSON messages; requests on stdin, replies on the file descriptor given as the fi
    evaluated here by ``formula.py`` (shipped next to this file, loaded before any student code):
    the reply carries numbers at the grader's points, never the text for the grader to parse.
 
+An exception raised by student code is told by ``errors.py`` (shipped next to this file, loaded
+first): the one formatter the grader's in-process stand-ins use too. An init message with
+``"seccomp"`` (a filter program, hex) makes the child add that filter (an exercise that starts no
+program: no fork, no exec) before it executes the first cell.
+
 Everything here runs with student code in the same process, so nothing here is trusted by the
 grader: the parent treats each reply as untrusted data.
 """
@@ -24,11 +29,18 @@ import os
 import resource
 import struct
 import sys
-import traceback
 
 _MAX_TEXT = 2000
 _PRINT_CAP = 64 * 1024
 _UNAVAILABLE = "is not available in this exercise"  # the import rule's (and the stubs') refusal
+
+
+class _NotPlain(Exception):
+    """A result that is not plain data (``args[0]`` says why)."""
+
+
+class _Reported(Exception):
+    """A call that failed for a reason the runner words itself (``args[0]``)."""
 
 
 def _read_exact(fd, n):
@@ -122,7 +134,7 @@ _CLEAN_EXIT = 165  # an exercise's child that received "end" (the zygote then cl
 def _config_error(reply_fd, module, exc):
     """Tell the grader that ``module`` (numpy, or a module of the allowlist) cannot be imported
     before any student code ran (its configuration, never the student's doing), and exit."""
-    text = "".join(traceback.format_exception_only(type(exc), exc)).strip()[:_MAX_TEXT]
+    text = f"{type(exc).__name__}: {exc}".strip()[:_MAX_TEXT]
     data = json.dumps({"op": "config-error", "module": module, "error": text}).encode("utf-8")
     buf = struct.pack(">I", len(data)) + data
     while buf:
@@ -143,8 +155,8 @@ def _setup(msg):
 
 
 def _wipe(roots, litter_roots):
-    """Empty the writable folders between two exercises of one student (the zygote's own uid owns
-    everything in them); also what this uid left in the machine's world-writable folders."""
+    """Empty the writable folders between two exercises (the zygote's own uid owns everything in
+    them); also what this uid left in the machine's world-writable folders."""
     import shutil
 
     def fix(func, path, exc):
@@ -182,6 +194,67 @@ def _wipe(roots, litter_roots):
                 shutil.rmtree(path, onerror=fix)
             else:
                 os.unlink(path)
+
+
+_DIR = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW
+
+
+def _pristine(roots):
+    """``[(root, (mode, uid, gid))]``: the writable folders as the sandbox made them (before any
+    student code), what :func:`_rebuild` brings them back to."""
+    out = []
+    for root in roots:
+        st = os.lstat(root)
+        out.append((root, (st.st_mode & 0o7777, st.st_uid, st.st_gid)))
+    return out
+
+
+def _rebuild(pristine, litter_roots):
+    """Give the next exercise the writable folders a fresh sandbox has: each root gets back its
+    mode (a student's ``chmod 555 $HOME /tmp`` would fail every later build) and loses every
+    extended attribute and ACL, then is emptied; it is checked to be empty, of its first mode and
+    owner and without attributes. Raises when it is not (the zygote then ends: the grader starts a
+    new sandbox)."""
+    for root, (mode, _, _) in pristine:
+        fd = os.open(root, _DIR)
+        try:
+            os.fchmod(fd, mode | 0o700)  # writable by its owner while it is emptied
+            try:
+                names = os.listxattr(fd)
+            except OSError:  # a filesystem without extended attributes
+                names = []
+            for name in names:
+                os.removexattr(fd, name)
+        finally:
+            os.close(fd)
+    _wipe([root for root, _ in pristine], litter_roots)
+    for root, (mode, uid, gid) in pristine:
+        fd = os.open(root, _DIR)
+        try:
+            os.fchmod(fd, mode)
+            st = os.fstat(fd)
+            try:
+                left = os.listxattr(fd)
+            except OSError:
+                left = []
+            if os.listdir(fd) or left or (st.st_mode & 0o7777, st.st_uid, st.st_gid) != (mode, uid, gid):
+                raise RuntimeError(f"{root} could not be rebuilt")
+        finally:
+            os.close(fd)
+
+
+_LIMITS = ("RLIMIT_AS", "RLIMIT_CPU", "RLIMIT_NOFILE", "RLIMIT_NPROC", "RLIMIT_FSIZE", "RLIMIT_CORE",
+           "RLIMIT_STACK", "RLIMIT_DATA", "RLIMIT_MEMLOCK")
+
+
+def _scheduling():
+    """What a process of this uid could change in the zygote and its next child would inherit: its
+    nice value, scheduling policy and priority, CPU affinity and resource limits. (The seccomp
+    filter refuses changing another process's; a zygote whose values changed anyway, e.g. where no
+    filter could be installed, ends, since an unprivileged process cannot take them back.)"""
+    limits = tuple(resource.getrlimit(getattr(resource, n)) for n in _LIMITS if hasattr(resource, n))
+    return (os.getpriority(os.PRIO_PROCESS, 0), os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
+            tuple(sorted(os.sched_getaffinity(0))), limits)
 
 
 def _survivors(me):
@@ -259,8 +332,9 @@ def _zygote(msg, reply_fd, stdlib_paths):
     for fd in (0, 1, 2):
         os.dup2(devnull, fd)
     os.close(devnull)
-    wipe_roots = list(msg.get("wipe", ()))
+    pristine = _pristine(msg.get("wipe", ()))
     litter_roots = list(msg.get("litter", ()))
+    scheduling = _scheduling()
     data = json.dumps({"op": "zygote-ready"}).encode()
     os.write(reply_fd, struct.pack(">I", len(data)) + data)
     os.close(reply_fd)
@@ -309,13 +383,17 @@ def _zygote(msg, reply_fd, stdlib_paths):
         else:
             os._exit(3)  # something survived: the grader discards this sandbox
         try:
-            _wipe(wipe_roots, litter_roots)
+            _rebuild(pristine, litter_roots)
+            if _scheduling() != scheduling:
+                os._exit(3)
         except Exception:
             os._exit(3)
         ctl.send(b"clean")
 
 
 def main():
+    global _ERRORS
+    _ERRORS = _load("errors")
     reply_fd = os.dup(int(sys.argv[1]))
     os.close(int(sys.argv[1]))
     os.set_inheritable(reply_fd, False)
@@ -327,22 +405,48 @@ def main():
         _serve(init, reply_fd, stdlib_paths)
 
 
-def _load_formula():
-    """``formula.py`` from this file's folder (None when it is missing), loaded by path."""
+def _load(name):
+    """The module ``<name>.py`` from this file's folder (None when it is missing), loaded by path."""
     import importlib.util
 
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "formula.py")
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), f"{name}.py")
     if not os.path.isfile(path):
         return None
-    spec = importlib.util.spec_from_file_location("_sandbox_formula", path)
+    spec = importlib.util.spec_from_file_location(f"_sandbox_{name}", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
+_ERRORS = None  # errors.py, loaded by main() before anything else
+
+
+def _add_filter(hex_program):
+    """Install one more seccomp filter (``no_new_privs`` first, which the sandbox has set already)."""
+    import ctypes
+
+    data = bytes.fromhex(hex_program)
+
+    class Fprog(ctypes.Structure):
+        _fields_ = [("len", ctypes.c_ushort), ("filter", ctypes.c_void_p)]
+
+    buf = ctypes.create_string_buffer(data, len(data))
+    fprog = Fprog(len(data) // 8, ctypes.cast(buf, ctypes.c_void_p))
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_void_p, ctypes.c_ulong, ctypes.c_ulong]
+    if libc.prctl(38, 1, None, 0, 0) != 0 or libc.prctl(22, 2, ctypes.addressof(fprog), 0, 0) != 0:
+        raise OSError(ctypes.get_errno(), "the exercise's seccomp filter could not be installed")
+
+
 def _serve(init, reply_fd, stdlib_paths):
     _setup(init)
-    formula = _load_formula()  # before the import guard and any student code
+    formula = _load("formula")  # before the import guard and any student code
+    errors = _ERRORS
+    if init.get("seccomp"):  # this exercise starts no program: no fork, no exec from here on
+        try:
+            _add_filter(init["seccomp"])
+        except OSError:
+            os._exit(5)  # never run student code without the filter the grader asked for
 
     try:
         import numpy as np
@@ -360,7 +464,8 @@ def _serve(init, reply_fd, stdlib_paths):
     dumps = json.dumps
     pack = struct.pack
     write = os.write
-    exc_format = traceback.format_exception_only
+    exception_text = errors.exception_text
+    not_plain = errors.not_plain
 
     def send(obj):
         data = dumps(obj).encode("utf-8")
@@ -370,7 +475,7 @@ def _serve(init, reply_fd, stdlib_paths):
 
     def to_plain(x, depth=0):
         if depth > 32:
-            raise TypeError("the result is nested too deeply")
+            raise _NotPlain("the result is nested too deeply")
         t = type(x)
         if x is None or t is bool or t is int or t is float or t is str:
             return x
@@ -378,18 +483,18 @@ def _serve(init, reply_fd, stdlib_paths):
             return [to_plain(v, depth + 1) for v in x]
         if t is dict:
             if not all(type(k) is str for k in x):
-                raise TypeError("a returned dict has non-string keys")
+                raise _NotPlain("a returned dict has non-string keys")
             return {k: to_plain(v, depth + 1) for k, v in x.items()}
         if isinstance(x, ndarray):
             base = as_array(view(x, ndarray), copy=True)  # the raw buffer, never a subclass' methods
             if base.dtype.kind not in ok_kinds:
-                raise TypeError(f"returned an array of dtype {base.dtype}; return numbers")
+                raise _NotPlain(f"returned an array of dtype {base.dtype}; return numbers")
             return to_list(base)
         if t in scalar_types:
             return to_list(as_array(x))
         if isinstance(x, generic):
-            raise TypeError(f"returned a numpy scalar of type {t.__name__}; return real numbers")
-        raise TypeError(
+            raise _NotPlain(f"returned a numpy scalar of type {t.__name__}; return real numbers")
+        raise _NotPlain(
             f"returned an object of type {t.__name__}; return numbers, lists or numpy arrays"
         )
 
@@ -507,11 +612,7 @@ def _serve(init, reply_fd, stdlib_paths):
             code = compile(src, f"<cell {gid}>", "exec")
             exec(code, ns)
         except BaseException as exc:  # student code may raise anything
-            if isinstance(exc, SystemExit):
-                text = "the cell called sys.exit()"
-            else:
-                text = "".join(exc_format(type(exc), exc)).strip()
-            cell_errors[gid] = text[:_MAX_TEXT]
+            cell_errors[gid] = exception_text(exc, cell=True)
     sink.take()
     send({"op": "ready", "cell_errors": cell_errors})
 
@@ -537,7 +638,7 @@ def _serve(init, reply_fd, stdlib_paths):
                 name = call["function"]
                 fn = ns.get(name)
                 if fn is None:
-                    raise NameError(f"there is no function named {name!r} (was it renamed or deleted?)")
+                    raise _Reported(errors.missing_function(name))
                 if not callable(fn):
                     raise TypeError(f"{name!r} is not a function")
                 args = from_wire(call.get("args", []))
@@ -548,15 +649,15 @@ def _serve(init, reply_fd, stdlib_paths):
                     if formula is None:
                         raise RuntimeError("the sandbox cannot read formulas (formula.py is missing)")
                     value = formula.apply(post, value)
-                reply = {"ok": True, "value": to_plain(value)}
-            except MemoryError:
-                reply = {"ok": False, "error": "ran out of memory (MemoryError)"}
-            except SystemExit:
-                reply = {"ok": False, "error": "the process exited (sys.exit / os._exit)"}
-            except RecursionError:
-                reply = {"ok": False, "error": "RecursionError: maximum recursion depth exceeded"}
+                try:
+                    plain = to_plain(value)
+                except _NotPlain as exc:
+                    raise _Reported(not_plain(exc.args[0])) from None
+                reply = {"ok": True, "value": plain}
+            except _Reported as exc:
+                reply = {"ok": False, "error": exc.args[0]}
             except BaseException as exc:
-                reply = {"ok": False, "error": "".join(exc_format(type(exc), exc)).strip()[:_MAX_TEXT]}
+                reply = {"ok": False, "error": exception_text(exc)}
             reply["printed"] = sink.take()
             usage = resource.getrusage(resource.RUSAGE_SELF)
             reply["cpu"] = usage.ru_utime + usage.ru_stime

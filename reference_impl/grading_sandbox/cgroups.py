@@ -7,13 +7,21 @@ process of the sandbox, and the kernel's OOM killer then stays inside that group
 a grading worker. :class:`SandboxCgroup` makes one per sandbox, below the grader's own cgroup:
 
 * **cgroup v2** (``/sys/fs/cgroup/cgroup.controllers``): ``memory.max``, ``memory.swap.max = 0``,
-  ``memory.oom.group = 1`` (an OOM kills the whole sandbox) and ``pids.max``; closed with
-  ``cgroup.kill``. Needs the ``memory`` and ``pids`` controllers enabled for children of the
-  grader's cgroup (``cgroup.subtree_control``) and write access there: the case for root on a
-  server, a systemd unit with ``Delegate=yes``, or ``systemd-run --user -p Delegate=yes``.
+  ``memory.oom.group = 1`` (an OOM kills the whole sandbox), ``pids.max`` and, where the ``cpu``
+  controller can be enabled, ``cpu.weight``; closed with ``cgroup.kill``. Needs the ``memory``
+  and ``pids`` controllers enabled for children of the grader's cgroup (``cgroup.subtree_control``)
+  and write access there: the case for root on a server, a systemd unit with ``Delegate=yes``, or
+  ``systemd-run --user -p Delegate=yes``.
 * **cgroup v1** (``/sys/fs/cgroup/memory`` and ``/sys/fs/cgroup/pids`` writable, as root in many
   containers and VMs): ``memory.limit_in_bytes`` (with ``memory.memsw.limit_in_bytes`` when swap
-  accounting exists) and ``pids.max``.
+  accounting exists), ``pids.max`` and, where ``/sys/fs/cgroup/cpu`` is writable too,
+  ``cpu.shares``.
+
+The CPU share: the sandbox's processes and threads are scheduled as one group, with the default
+weight (:data:`CPU_WEIGHT`), against the grader's other work. However many threads a student
+starts, and whatever nice value or scheduling policy they give them (a process may change its own),
+the sandbox gets one share of the CPU, and those settings act inside its group only; the seccomp
+filter keeps them from changing any other process's (:mod:`.seccomp`).
 
 When neither is available (an ordinary user without delegation, most laptops) the sandbox falls back
 to its resource limits alone (RLIMIT_AS per process, RLIMIT_NPROC, a tmpfs bounded by size): memory
@@ -33,7 +41,11 @@ from pathlib import Path
 
 from . import config
 
-__all__ = ["SandboxCgroup", "cgroup_status"]
+__all__ = ["CPU_WEIGHT", "SandboxCgroup", "cgroup_status"]
+
+#: the CPU weight of a sandbox's group (cgroup v2 ``cpu.weight``; v1 ``cpu.shares`` is 1024 / 100
+#: times it): the kernel's default, the same as any other group's
+CPU_WEIGHT = 100
 
 _ROOT = Path("/sys/fs/cgroup")
 _counter = itertools.count()
@@ -91,6 +103,27 @@ def _v1_parents() -> tuple[Path, Path] | None:
     return out[0], out[1]
 
 
+def _v2_cpu(base: Path) -> bool:
+    """True when sub-cgroups of ``base`` get the ``cpu`` controller (enabled here if it can be)."""
+    try:
+        if "cpu" in (base / "cgroup.subtree_control").read_text().split():
+            return True
+        (base / "cgroup.subtree_control").write_text("+cpu")
+        return True
+    except OSError:
+        return False
+
+
+def _v1_cpu_parent() -> Path | None:
+    """The v1 ``cpu`` hierarchy's folder of this process where sub-cgroups can be made, else None."""
+    own = _own_path(1, "cpu")
+    root = _ROOT / "cpu"
+    if own is None or not (root / "cgroup.procs").is_file():
+        return None
+    base = root / own.lstrip("/")
+    return base if base.is_dir() and os.access(base, os.W_OK) else None
+
+
 def cgroup_status() -> tuple[str, str]:
     """``(kind, why)``: kind ``"v2"``, ``"v1"`` or ``""`` (none: rlimits only), and why not."""
     if config.switched_off(config.ENV_CGROUP):
@@ -108,7 +141,8 @@ class SandboxCgroup:
     :meth:`kill` and :meth:`remove`.
 
     ``memory_bytes`` bounds everything the sandbox's processes hold in RAM together, tmpfs and memfd
-    pages included; ``processes`` the tasks (processes and threads).
+    pages included; ``processes`` the tasks (processes and threads); the CPU is shared with the
+    weight :data:`CPU_WEIGHT` (where the ``cpu`` controller is available: :attr:`cpu`).
     """
 
     def __init__(self, kind: str, dirs: list[Path]) -> None:
@@ -136,6 +170,11 @@ class SandboxCgroup:
                     except OSError:
                         pass
                 (d / "pids.max").write_text(str(int(processes)))
+                if _v2_cpu(parent):
+                    try:
+                        (d / "cpu.weight").write_text(str(CPU_WEIGHT))
+                    except OSError:
+                        pass
                 return group
             if kind == "v1":
                 parents = _v1_parents()
@@ -153,12 +192,31 @@ class SandboxCgroup:
                     except OSError:
                         pass
                 (pids / "pids.max").write_text(str(int(processes)))
+                cpu_parent = _v1_cpu_parent()
+                if cpu_parent is not None:
+                    cpu = cpu_parent / name
+                    try:
+                        cpu.mkdir()
+                    except OSError:
+                        return group
+                    group.dirs.append(cpu)
+                    group._procs.append(str(cpu / "cgroup.procs"))
+                    try:
+                        (cpu / "cpu.shares").write_text(str(CPU_WEIGHT * 1024 // 100))
+                    except OSError:
+                        pass
                 return group
         except OSError:
             if group is not None:
                 group.remove()
             return None
         return None
+
+    @property
+    def cpu(self) -> bool:
+        """True when the group has a CPU share of its own."""
+        return any(d.name == self.dirs[0].name and d.parent.name == "cpu" for d in self.dirs[1:]) or (
+            self.kind == "v2" and (self.dirs[0] / "cpu.weight").exists())
 
     def enter(self) -> None:
         """Move the calling process into the cgroup (call it in the child before ``exec``)."""

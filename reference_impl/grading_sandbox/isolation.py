@@ -80,11 +80,8 @@ def drop_to(uid: int | None) -> None:
 JVM_CONFIG = ("/etc/java-17-openjdk", "/etc/java-21-openjdk")
 
 
-def bwrap_base(bwrap: str) -> list[str]:
-    """The bubblewrap command line every sandboxed child starts with: all namespaces
-    unshared, uid/gid 65534, ``/usr`` and the library folders read-only, the loader and JDK
-    configuration, a fresh ``/proc`` and ``/dev``."""
-    args = [bwrap, "--unshare-all", "--unshare-user", "--die-with-parent", "--new-session",
+def _bwrap_args(bwrap: str, extra: tuple[str, ...] = ()) -> list[str]:
+    args = [bwrap, "--unshare-all", "--unshare-user", *extra, "--die-with-parent", "--new-session",
             "--uid", "65534", "--gid", "65534", "--ro-bind", "/usr", "/usr"]
     for top in ("/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32"):
         if os.path.islink(top):
@@ -98,6 +95,15 @@ def bwrap_base(bwrap: str) -> list[str]:
     return args
 
 
+def bwrap_base(bwrap: str) -> list[str]:
+    """The bubblewrap command line every sandboxed child starts with: all namespaces
+    unshared, no further user namespace inside (``--disable-userns`` where this bubblewrap and
+    kernel support it; the seccomp filter refuses new namespaces in any case), uid/gid 65534,
+    ``/usr`` and the library folders read-only, the loader and JDK configuration, a fresh ``/proc``
+    and ``/dev``."""
+    return _bwrap_args(bwrap, _probe_bwrap(bwrap, os.geteuid() == 0)[2])
+
+
 def bwrap_path() -> str | None:
     """The bubblewrap executable: the variable :data:`.config.ENV_BWRAP` when set (tests point it at a
     failing stub to run as under Docker's default seccomp profile), else ``bwrap`` on PATH."""
@@ -105,25 +111,30 @@ def bwrap_path() -> str | None:
 
 
 @functools.lru_cache(maxsize=8)
-def _probe_bwrap(bwrap: str | None, as_other_uid: bool) -> tuple[bool, str]:
+def _probe_bwrap(bwrap: str | None, as_other_uid: bool) -> tuple[bool, str, tuple[str, ...]]:
+    """``(usable, why not, extra options)``: bubblewrap runs ``true`` here, with
+    ``--disable-userns`` when it can."""
     if bwrap is None:
-        return False, "bubblewrap (bwrap) is not installed"
+        return False, "bubblewrap (bwrap) is not installed", ()
     true = shutil.which("true") or "/usr/bin/true"
     uid = sandbox_uid() if as_other_uid else None
-    try:
-        r = subprocess.run([*bwrap_base(bwrap), true], preexec_fn=lambda: drop_to(uid),
-                           capture_output=True, timeout=30, env={"PATH": "/usr/bin:/bin"})
-    except (OSError, subprocess.SubprocessError) as exc:
-        return False, f"bwrap could not run ({exc})"
-    if r.returncode != 0:
-        why = r.stderr.decode(errors="replace").strip().splitlines()
-        return False, f"bwrap cannot create namespaces here ({why[-1] if why else r.returncode})"
-    return True, ""
+    why = ""
+    for extra in (("--disable-userns",), ()):
+        try:
+            r = subprocess.run([*_bwrap_args(bwrap, extra), true], preexec_fn=lambda: drop_to(uid),
+                               capture_output=True, timeout=30, env={"PATH": "/usr/bin:/bin"})
+        except (OSError, subprocess.SubprocessError) as exc:
+            return False, f"bwrap could not run ({exc})", ()
+        if r.returncode == 0:
+            return True, "", extra
+        lines = r.stderr.decode(errors="replace").strip().splitlines()
+        why = why or f"bwrap cannot create namespaces here ({lines[-1] if lines else r.returncode})"
+    return False, why, ()
 
 
 def bwrap_status() -> tuple[bool, str]:
     """``(usable, why not)`` for bubblewrap on this machine (probed once per process and path)."""
-    return _probe_bwrap(bwrap_path(), os.geteuid() == 0)
+    return _probe_bwrap(bwrap_path(), os.geteuid() == 0)[:2]
 
 
 def setpriv_status() -> tuple[bool, str]:

@@ -220,9 +220,10 @@ def stub_dir(name: str) -> Path:
 
 @functools.lru_cache(maxsize=1)
 def runner_dir() -> Path:
-    """The folder the sandbox runs its child from: ``_child.py`` and the formula reader it loads
-    (``formula.py``), keyed by their contents."""
-    files = {name: (Path(__file__).parent / name).read_bytes() for name in ("_child.py", "formula.py")}
+    """The folder the sandbox runs its child from: ``_child.py`` and the modules it loads by path
+    (``errors.py``, ``formula.py``), keyed by their contents."""
+    files = {name: (Path(__file__).parent / name).read_bytes()
+             for name in ("_child.py", "errors.py", "formula.py")}
     key = hashlib.sha256(b"\0".join(files[n] for n in sorted(files))).hexdigest()[:16]
 
     def build(tmp: Path) -> None:

@@ -4,6 +4,7 @@ their functions (the threat model and the defences are in the package's docstrin
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -52,7 +53,7 @@ from .runtime import (
     runner_dir,
     site_dirs,
 )
-from .seccomp import preexec_installer, seccomp_status
+from .seccomp import no_spawn_program, preexec_installer, seccomp_status
 from .seccomp import program as seccomp_program
 from .wire import Call, Outcome, is_plain, to_wire
 
@@ -63,6 +64,12 @@ _OWN = __name__.partition(".")[0]
 _DISK_POLL = 0.2  # seconds between measurements of the child's directory while waiting for it
 _ZYGOTE_FORKS = 256  # exercises a zygote serves before it is replaced (bounds its own CPU time)
 _DEFAULT_LIMITS = Limits()  # a frozen dataclass: immutable
+
+
+@functools.lru_cache(maxsize=1)
+def _no_spawn_hex() -> str:
+    """The no-spawn filter (:func:`.seccomp.no_spawn_program`) as the child's init message carries it."""
+    return no_spawn_program().hex()
 
 
 class _ChildGone(Exception):
@@ -394,7 +401,8 @@ class Sandbox:
             init = self._inits[view] = self._command(launch=False)[2]
         init = dict(init)
         init.update(op="init", nproc=self._nproc_child, blocked=list(self.blocked), cells=self.cells,
-                    allow_spawn=self.spawn, probe=self._probe_modules())
+                    allow_spawn=self.spawn, probe=self._probe_modules(),
+                    seccomp=_no_spawn_hex() if self.seccomp and not self.spawn else None)
         self._cpu_used = 0.0
         deadline = time.monotonic() + timeout
         try:
@@ -440,8 +448,9 @@ class Sandbox:
         if self._zygote:
             self._ctl, ctl_child = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
             ctl_fd = ctl_child.fileno()
-        # The seccomp filter (memfd, System V IPC, ... refused: see .seccomp): bubblewrap loads
-        # it from a pipe (--seccomp FD) right before it executes the child; otherwise preexec_fn does.
+        # The seccomp filter (memfd, IPC, namespaces, ... refused: see .seccomp): bubblewrap loads
+        # it from a pipe (--seccomp FD) right before it executes the child; otherwise preexec_fn does,
+        # with the socket rule (no network namespace there: AF_UNIX only).
         self.seccomp, _ = seccomp_status()
         install, filter_fd = None, None
         if self.seccomp and self._mode == "bwrap":
@@ -450,7 +459,7 @@ class Sandbox:
                 fh.write(seccomp_program())
             cmd = [cmd[0], "--seccomp", str(filter_fd), *cmd[1:]]
         elif self.seccomp:
-            install = preexec_installer()
+            install = preexec_installer(network=False)
         fds = (w,) if ctl_child is None else (w, ctl_child.fileno())
         try:
             self._proc = subprocess.Popen(

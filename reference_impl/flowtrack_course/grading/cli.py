@@ -82,8 +82,14 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         hidden_visibility=args.hidden_visibility,
         force=args.force,
     )
+    from .assignment import assignment_of
+
+    assignment = assignment_of(course, args.assignment_file)
+    catalog = course_catalog(course, assignment)
+    print(f"assignment ({assignment.source or 'default: no assignment.toml'}): {assignment.describe()}",
+          file=sys.stderr)
     job = ClassJob(
-        args.submissions, args.out, catalog=course_catalog(course), jobs=args.jobs, options=options,
+        args.submissions, args.out, catalog=catalog, jobs=args.jobs, options=options,
         allow_unsafe_sandbox=args.allow_unsafe_sandbox, progress=not args.no_progress,
     )
     try:
@@ -125,10 +131,20 @@ def _cmd_gradescope(args: argparse.Namespace) -> int:
 
     _secret(args.secret_file)  # creates a missing key (and says so), or warns that there is none
     path = build_autograder(
-        args.out, source=args.course, secret_file=args.secret_file, exercises=args.exercises
+        args.out, source=args.course, secret_file=args.secret_file, exercises=args.exercises,
+        assignment=args.assignment_file,
     )
     print(f"wrote {path} (upload it as the assignment's autograder; Ubuntu 24.04 base image)")
     return 0
+
+
+def _add_assignment_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--assignment-file", metavar="FILE", default=None,
+        help="what counts: which exercises and which other languages (an assignment.toml; default: the "
+        "course's assignment.toml, else every notebook exercise and no other language). Uploads outside "
+        "it are ignored with a note and never change anyone's maximum",
+    )
 
 
 def _add_instructor_options(p: argparse.ArgumentParser) -> None:
@@ -263,6 +279,7 @@ def register(subparsers) -> None:
         help="the course folder with exercises/ (default: $FLOWTRACK_COURSE, else the current folder)",
     )
     _add_secret_option(p)
+    _add_assignment_option(p)
     _add_instructor_options(p)
     p.set_defaults(func=_cmd_grade)
     _add_export_command(subparsers)
@@ -288,6 +305,7 @@ def register(subparsers) -> None:
         "$FLOWTRACK_COURSE, else the current folder)",
     )
     _add_secret_option(p)
+    _add_assignment_option(p)
     p.set_defaults(func=_cmd_gradescope)
 
 

@@ -76,7 +76,8 @@ def probe():
 """
 
 
-def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=()) -> tuple[float, list]:
+def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=(),
+          spawn=False) -> tuple[float, list]:
     """Score the toy exercise: fraction of 3 add-calls within tolerance, then check mul still works.
 
     Run twice: in a fresh Sandbox, and as one exercise of a SandboxPool (the fast path of
@@ -93,7 +94,7 @@ def grade(cell: str, seed: int = 0, timeout: float = 5, blocked=(), hidden=()) -
         pool = SandboxPool()
         factory = pool if pooled else _Sandbox
         with factory([("answer", src)], limits=LIMITS, blocked=blocked, hidden_paths=hidden,
-                     packages=LIBRARY, private=GRADER) as sb:
+                     packages=LIBRARY, private=GRADER, spawn=spawn) as sb:
             outcomes = sb.run([Call("add", p) for p in pairs], timeout=timeout)
             score = np.mean([_matches(o, a + b) for o, (a, b) in zip(outcomes, pairs)])
             after = sb.run([Call("mul", (x, 3.0))], timeout=10)  # other tests go on
@@ -280,7 +281,10 @@ def test_memory_bomb(mode):
     assert score == 0.0 and "memory" in outcomes[0].error
 
 
-def test_fork_bomb(strong):
+@pytest.mark.parametrize("spawn", [False, True], ids=["notebook", "starts-programs"])
+def test_fork_bomb(strong, spawn):
+    # a notebook's child may not fork at all (the kernel refuses); an exercise that starts programs
+    # may, up to the sandbox's process limit
     cell = """
 import os
 def add(a, b):
@@ -290,7 +294,7 @@ def add(a, b):
         except OSError:
             pass
 """
-    score, outcomes = grade(cell, timeout=2)
+    score, outcomes = grade(cell, timeout=2, spawn=spawn)
     assert score == 0.0 and all(not o.ok for o in outcomes)
 
 

@@ -55,13 +55,14 @@ def probe():
 """
 
 
-def _run_attack(mode, cell, call, limits, expect_gone=True):
+def _run_attack(mode, cell, call, limits, expect_gone=True, spawn=False):
     """The attack's outcome; then an honest call in the same Sandbox; then nothing left outside.
 
     Also as one exercise of a SandboxPool (zygote), whose next exercise must start clean; both runs
-    must agree on whether the attack's call failed. The plain run's outcome is returned.
+    must agree on whether the attack's call failed. The plain run's outcome is returned. ``spawn``:
+    as an exercise whose own code starts programs (the kernel then lets the child fork).
     """
-    with Sandbox([("a", HONEST + cell)], limits=limits) as sb:
+    with Sandbox([("a", HONEST + cell)], limits=limits, spawn=spawn) as sb:
         (out,) = sb.run([call], timeout=limits.wall_seconds)
         workdir = sb._workdir
         x = np.arange(4.0)
@@ -70,7 +71,7 @@ def _run_attack(mode, cell, call, limits, expect_gone=True):
     assert workdir is None or not workdir.exists(), f"left behind: {workdir}"
     assert sb.cleanup_problems == []
     with SandboxPool() as pool:
-        with pool([("a", HONEST + cell)], limits=limits) as lease:
+        with pool([("a", HONEST + cell)], limits=limits, spawn=spawn) as lease:
             (pooled,) = lease.run([call], timeout=limits.wall_seconds)
             (after,) = lease.run([Call("mul", (x, 2.0))], timeout=20)
             assert after.ok and after.value == (2 * x).tolist(), after
@@ -245,7 +246,7 @@ def attack():
     return sum(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0 for pid in kids)
 """
     limits = Limits(cpu_seconds=10, wall_seconds=20, memory_bytes=1 << 30, processes=16, disk_bytes=32 * MiB)
-    out = _run_attack("bwrap", cell, Call("attack"), limits)
+    out = _run_attack("bwrap", cell, Call("attack"), limits, spawn=True)  # (else fork is refused)
     # the kernel stops the sandbox as a whole (cgroup v2: memory.oom.group) or its largest
     # processes (v1): never do all four children hold their memory
     assert (not out.ok and "memory" in out.error) or (out.ok and out.value < 4), out

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from grading_sandbox import formula
+from grading_sandbox.errors import exception_text, missing_function, not_plain
 from grading_sandbox.wire import NotPlainData, as_child_receives, plain_data
 
 from ..engine.feedback import safe_text
@@ -77,15 +78,21 @@ def _alarm(seconds: float):
 def call_all(namespace: Mapping[str, Any], calls: Sequence[Call], timeout: float) -> list[Outcome]:
     """Make ``calls`` of the functions in ``namespace`` in this process, as the sandboxed child does
     (arguments rebuilt from plain data, results converted to plain data, a formula read by
-    :mod:`grading_sandbox.formula`), all of them within ``timeout`` seconds; one outcome per call."""
+    :mod:`grading_sandbox.formula`, errors told by the child's own formatter,
+    :func:`grading_sandbox.errors.exception_text`), all of them within ``timeout`` seconds; one
+    outcome per call."""
     outcomes: list[Outcome] = []
     try:
         with _alarm(timeout), warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")
             for call in calls:
                 fn = namespace.get(call.function)
+                if fn is None:
+                    outcomes.append(Outcome(False, error=missing_function(call.function)))
+                    continue
                 if not callable(fn):
-                    outcomes.append(Outcome(False, error=f"no function named {call.function!r} was defined"))
+                    error = exception_text(TypeError(f"{call.function!r} is not a function"))
+                    outcomes.append(Outcome(False, error=error))
                     continue
                 args = [as_child_receives(a) for a in call.args]
                 kwargs = {k: as_child_receives(v) for k, v in call.kwargs.items()}
@@ -96,15 +103,11 @@ def call_all(namespace: Mapping[str, Any], calls: Sequence[Call], timeout: float
                     value = plain_data(value)
                     value = json.loads(json.dumps(value, allow_nan=True))
                 except NotPlainData as exc:
-                    outcomes.append(Outcome(False, error=str(exc)))
-                except NotImplementedError:
-                    outcomes.append(Outcome(False, error=f"{call.function} is not implemented yet"))
+                    outcomes.append(Outcome(False, error=not_plain(str(exc))))
                 except (_Timeout, KeyboardInterrupt):
                     raise
                 except BaseException as exc:  # SystemExit included: an answer that exits fails
-                    outcomes.append(
-                        Outcome(False, error=f"{call.function} raised {type(exc).__name__}: {exc}")
-                    )
+                    outcomes.append(Outcome(False, error=exception_text(exc)))
                 else:
                     outcomes.append(Outcome(True, value=value))
     except _Timeout:

@@ -64,8 +64,10 @@ def per_call(
     """A scorer awarding the mean over calls of each call's check fraction (in [0, 1]).
 
     Its message is a :class:`~.feedback.Report`: the public text names
-    each failing call with its arguments (``labels``), the hidden-safe text only by its number and
-    function (a hidden call's arguments are hidden inputs), and the mistakes recognised in any call.
+    each failing call with its arguments (``labels``), the hidden-safe text only the functions that
+    failed and why (a hidden call's arguments are hidden inputs; which of the calls failed is the
+    student code's choice too, so each reason is said once, in a fixed order), and the mistakes
+    recognised in any call.
     """
     labels = list(labels)
     checks = list(checks)
@@ -74,12 +76,12 @@ def per_call(
     def scorer(outcomes: Sequence[Outcome]) -> tuple[float, str]:
         if len(outcomes) != len(checks):
             msg = f"expected {len(checks)} results, got {len(outcomes)}"
-            return 0.0, Report(msg, msg)
+            return 0.0, Report(msg, "the sandbox failed (not your code: tell your instructor)")
         fractions = []
         problems = []
-        safe_problems = []
+        safe_problems: list[str] = []
         messages = []
-        for k, (label, fn, check, outcome) in enumerate(zip(labels, functions, checks, outcomes)):
+        for label, fn, check, outcome in zip(labels, functions, checks, outcomes):
             try:
                 f, msg = check(outcome)
             except Exception as exc:  # a trusted check must never crash the grader on odd data
@@ -89,16 +91,19 @@ def per_call(
             messages.append(msg)
             if f < 1.0:
                 problems.append(f"{label}: {msg}")
-                safe_problems.append(f"call {k + 1} of {len(checks)} ({fn}): {safe_text(msg)}")
+                reason = f"{fn}: {safe_text(msg)}"
+                if reason not in safe_problems:
+                    safe_problems.append(reason)
         score = sum(fractions) / len(fractions) if fractions else 0.0
         if score >= 1.0:
-            return 1.0, Report(f"all {len(checks)} checks passed")
+            done = f"all {len(checks)} checks passed"
+            return 1.0, Report(done, done)
         mistakes = consistent_mistakes(messages, [f >= 1.0 for f in fractions])
         n_ok = sum(f >= 1.0 for f in fractions)
         more = " ..." if len(problems) > 3 else ""
         head = f"{n_ok}/{len(checks)} checks passed. "
         public = head + "; ".join(problems[:3]) + more
-        safe = head + "; ".join(safe_problems[:3]) + more
+        safe = head + "; ".join(sorted(safe_problems))
         return score, Report(public, safe, mistakes, relations=_agreed(messages, mistakes))
 
     return scorer
@@ -140,7 +145,7 @@ def tuple_check(parts: Sequence[Check], names: Sequence[str]) -> Check:
         value = outcome.value
         if type(value) not in (list, tuple) or len(value) != len(parts):
             msg = f"expected a tuple ({', '.join(names)}) of {len(parts)} items"
-            return 0.0, Report(msg, msg)
+            return 0.0, Report(msg, msg)  # the grader's words only
         total = 0.0
         msgs = []
         safe = []

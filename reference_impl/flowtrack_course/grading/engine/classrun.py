@@ -36,6 +36,7 @@ from .student import exercises_hash, grade_student
 
 __all__ = [
     "GRADER_RESERVE",
+    "OUTPUT_FILES",
     "RESERVED_NAMES",
     "UnsafeSandbox",
     "close_shared_pools",
@@ -45,11 +46,20 @@ __all__ = [
     "unusable_students",
 ]
 
-# What a class run writes into its output folder beside the student folders: a student folder of one
-# of these names is refused (it would turn the grader's own output into a folder).
+#: Every file a class run (``flowtrack grade``) writes into its output folder beside the student
+#: folders, by role: the commands and exports take the names from here.
+OUTPUT_FILES = {
+    "grades": "grades.csv",
+    "gradebook": "gradebook.db",
+    "misconceptions": "misconceptions.csv",
+    "class_report": "class_report.md",
+    "canvas": "canvas.csv",
+    "moodle": "moodle.csv",
+}
+# A student folder named like one of them (or SQLite's files beside the gradebook) is refused: it
+# would turn the grader's own output into a folder.
 RESERVED_NAMES = frozenset(
-    {"grades.csv", "gradebook.db", "gradebook.db-journal", "gradebook.db-wal", "gradebook.db-shm",
-     "misconceptions.csv"}
+    {*OUTPUT_FILES.values(), "gradebook.db-journal", "gradebook.db-wal", "gradebook.db-shm"}
 )
 #: disk space the grader keeps for its outputs where students write to the same filesystem
 GRADER_RESERVE = 32 << 20
@@ -147,17 +157,21 @@ def _worker(task: _Task) -> dict:
     return _grade(replace(task.job, exercises=exercises))
 
 
-def _write_grades_csv(path: Path, rows: Iterable[dict], exercises: Sequence[Exercise]) -> None:
+def _write_grades_csv(path: Path, rows: Iterable[dict], exercises: Sequence[Exercise],
+                      assigned: dict[str, Sequence[Exercise]] | None = None) -> None:
+    """``grades.csv``: a column per exercise of the run; a student's cell is blank for an exercise not
+    assigned to them (another language than the one they chose), and their ``max`` counts only the
+    exercises assigned to them (``assigned``: ``{student: exercises}``; default: all)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["student", *[ex.id for ex in exercises], "total", "max"])
-    max_total = round_score(sum(ex.max_score for ex in exercises))
     for row in rows:
         scores = row.get("exercises", {})
-        w.writerow(
-            [row["student"], *[f"{scores.get(ex.id, 0.0):g}" for ex in exercises],
-             f"{row.get('score', 0.0):g}", f"{max_total:g}"]
-        )
+        mine = (assigned or {}).get(row["student"], exercises)
+        ids = {ex.id for ex in mine}
+        cells = [f"{scores.get(ex.id, 0.0):g}" if ex.id in ids else "" for ex in exercises]
+        top = round_score(sum(ex.max_score for ex in mine))
+        w.writerow([row["student"], *cells, f"{row.get('score', 0.0):g}", f"{top:g}"])
     write_atomic(path, buf.getvalue())
 
 
@@ -245,9 +259,10 @@ def run_class(job: ClassJob) -> tuple[list[dict], tuple[Exercise, ...], list[str
     job.out.mkdir(parents=True, exist_ok=True)
     ex_hash = exercises_hash(exercises)
     reserved = [s for s in students if student_folder(s).lower() in RESERVED_NAMES]
+    assigned = {s: _assigned(catalog, exercises, job.submissions / s) for s in students}
     jobs = [
-        StudentJob(s, job.submissions / s, job.out, exercises, options, ex_hash, job.renamed.get(s) or {},
-                   job.ignored.get(s) or {})
+        StudentJob(s, job.submissions / s, job.out, assigned[s][0], options, ex_hash,
+                   job.renamed.get(s) or {}, ignored=job.ignored.get(s) or {}, notes=assigned[s][1])
         for s in students if s not in reserved
     ]
     if options.sandbox_factory is None and jobs:
@@ -281,7 +296,8 @@ def run_class(job: ClassJob) -> tuple[list[dict], tuple[Exercise, ...], list[str
     for r in rows:
         if "error" in r and not r.get("config_error"):
             log(f"error: student {r['student']}: {r['error']} (scored 0; re-run grade to retry)")
-    _write_grades_csv(job.out / "grades.csv", rows, exercises)
+    mine = {s: a[0] for s, a in assigned.items()}
+    _write_grades_csv(job.out / OUTPUT_FILES["grades"], rows, exercises, mine)
     return rows, exercises, students
 
 
@@ -300,6 +316,19 @@ def uniform_failures(rows: Sequence[dict], exercises: Sequence[Exercise], least:
                 "grades"
             )
     return out
+
+
+def _assigned(catalog: Any, exercises: Sequence[Exercise],
+              folder: Path) -> tuple[tuple[Exercise, ...], tuple[str, ...]]:
+    """The exercises of a class run one student is graded on, and the notes on what of their folder is
+    not graded: those the catalog assigns the student (exercises it does not know, tests' fakes, are
+    everyone's), and its notes."""
+    if catalog is None:
+        return tuple(exercises), ()
+    known = {ex.id for ex in catalog.everything()}
+    mine = {ex.id for ex in catalog.for_student(folder)}
+    return (tuple(ex for ex in exercises if ex.id not in known or ex.id in mine),
+            tuple(catalog.ignored(folder)))
 
 
 def _in_workers(jobs: list[StudentJob], catalog: Any, n_workers: int, bar) -> dict[str, dict]:

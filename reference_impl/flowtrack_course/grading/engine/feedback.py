@@ -2,10 +2,17 @@ r"""Feedback that shows the difference without leaking hidden data.
 
 A check's message is a :class:`Report`: a ``str`` (what a student sees of a *public* test: expected
 against got, the worst entry and its index) that also carries ``safe``, the text a student may see of
-a *hidden* test (which check failed and why: a shape, the share of wrong entries, the worst relative
-error and its index, a timeout with its limit, an exception's type and line, never an input or an
-expected value), and ``mistakes``, the catalogued mistakes recognised from the student's outputs
-(:mod:`.mistakes`). Test-level feedback: one line per cause (:func:`explain_cascade`,
+a *hidden* test, and ``mistakes``, the catalogued mistakes recognised from the student's outputs
+(:mod:`.mistakes`).
+
+The safe text holds the grader's own words only, never a character the student's code chose: that
+code saw the hidden inputs, so anything it controls (an exception's message or type name, an exit
+status, the shape it returned, which entries are wrong, how many and by how much) could carry them
+out. It says which check failed and why from a fixed vocabulary: the expected shape, "inf/NaN where
+a finite value is expected", "wrong values" with the tolerance, a limit or a crash without numbers,
+"your code raised" an exception type of a fixed list (:func:`safe_error`,
+:func:`grading_sandbox.errors.category`). A :class:`Report` made without a safe text has the
+generic one. Test-level feedback: one line per cause (:func:`explain_cascade`,
 :func:`cell_problems`), which function to fix first (:func:`apply_dependencies`) and the lines a
 student sees of a test (:func:`feedback_lines`).
 
@@ -30,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from grading_sandbox import Outcome
+from grading_sandbox.errors import category
 
 from .compare import as_float_array
 from .mistakes import Catalogue, Variant, diagnose, generic_relation, shape_hint, visible_variants
@@ -48,8 +56,15 @@ __all__ = [
 ]
 
 
+#: the hidden-safe text of a check that gives none
+GENERIC_SAFE = "the results differ from the expected ones"
+
+
 class Report(str):
     """A check's message: the public text (``str`` value), the hidden-safe text and the mistakes.
+
+    ``safe`` must be made of the grader's own words (see the module docstring); without one a
+    hidden test shows :data:`GENERIC_SAFE`.
 
     ``mistakes`` is a tuple of catalogue ids, in the order recognised, without repeats; ``checked``
     the catalogued ids that were visible on these inputs (their wrong answer differs from the right
@@ -70,7 +85,7 @@ class Report(str):
         relations: Mapping[str, Any] | None = None, evidence: int = 1,
     ):
         obj = super().__new__(cls, public)
-        obj.safe = str(public) if safe is None else str(safe)
+        obj.safe = GENERIC_SAFE if safe is None else str(safe)
         seen: list[str] = []
         for m in mistakes:
             if m not in seen:
@@ -89,40 +104,36 @@ class Report(str):
 def safe_text(message: Any) -> str:
     """The hidden-safe text of a message (a plain ``str`` has none: only a generic sentence)."""
     safe = getattr(message, "safe", None)
-    return str(safe) if safe is not None else "the results differ from the expected ones"
+    return str(safe) if safe is not None else GENERIC_SAFE
 
 
 _LOCATION = re.compile(r'File "(<cell [^>]*>)", line (\d+)')
-_LAST = re.compile(r"^([A-Za-z_][A-Za-z0-9_.]*(?:Error|Exception|Warning|Interrupt|Exit))\b")
+_ENGINE = (
+    ("not run: answer cell", "not run: an answer cell failed to run (see the problems with the submission)"),
+    ("sandbox error:", "the sandbox failed (not your code: tell your instructor)"),
+    ("no result from the sandbox", "the sandbox failed (not your code: tell your instructor)"),
+)
 
 
 def safe_error(error: str) -> str:
-    """An error of a hidden call without anything the student's code could have put in it.
+    """What a hidden test may show of a failed call's ``error``: one sentence of a fixed list.
 
-    The exception's type and the cell line where it was raised are kept, its text is not (a
-    student's code sees the hidden inputs and could print them into an exception); the grader's own
-    reasons (time limit, output limit, memory) are kept whole.
+    The error's text is never copied: a student's code sees the hidden inputs and could put them in
+    an exception's message, its type's name, an exit status or a signal. The engine's own reasons
+    (a cell that failed, a sandbox error) and the sandbox's (limits, crashes, exits) become fixed
+    sentences, an exception its type when the type is one of a fixed list
+    (:func:`grading_sandbox.errors.category`).
 
-    >>> safe_error('Traceback ...\\n  File "<cell f>", line 3, in f\\nValueError: x = [0.123, 4.5]')
-    'ValueError (raised at <cell f> line 3)'
-    >>> safe_error("timed out")
-    'timed out (the time limit of this test was exceeded)'
+    >>> safe_error('ValueError: \\n0.123456')
+    'your code raised ValueError'
+    >>> safe_error("Leak: 0.123456"), safe_error("timed out after 10 s")
+    ('your code raised an exception', "timed out (the test's time limit was exceeded)")
     """
-    text = str(error or "the call failed").strip()
-    lines = [ln for ln in text.splitlines() if ln.strip()]
-    last = lines[-1].strip() if lines else text
-    if "Traceback" not in text and not _LAST.match(last):
-        if text == "timed out":
-            return "timed out (the time limit of this test was exceeded)"
-        # the grader's own messages (limits, missing functions, a cell that failed) hold no data
-        return text[:300]
-    m = _LAST.match(last)
-    kind = m.group(1) if m else "an exception"
-    where = _LOCATION.findall(text)
-    at = f" (raised at {where[-1][0]} line {where[-1][1]})" if where else ""
-    if kind.endswith("NotImplementedError"):
-        return "NotImplementedError: the function is not implemented yet"
-    return f"{kind}{at}"
+    text = str(error or "").strip()
+    for prefix, sentence in _ENGINE:
+        if text.startswith(prefix):
+            return sentence
+    return category(text)
 
 
 def _fmt(x: float) -> str:
@@ -162,8 +173,8 @@ def compare(
     """Compare one outcome with the expected array and say how they differ.
 
     The public text shows expected against got (whole arrays when small) and the worst entry with
-    its index; the safe text only the shape, the share of wrong entries, the worst relative error and
-    its index.
+    its index; the safe text only which check failed (the expected shape, non-finite entries, wrong
+    values and the relative tolerance, or :func:`safe_error`'s sentence).
     """
     expected = np.asarray(expected, dtype=np.float64)
     checked = tuple(visible_variants(expected, variants, rtol, atol))
@@ -179,7 +190,8 @@ def compare(
         msg = (f"wrong shape: expected an array of shape {expected.shape}, got shape {got_any.shape}"
                + shape_hint(got_any.shape, expected.shape))
         mistakes = tuple(diagnose(got_any, expected, variants, rtol, atol))
-        return Diff(False, msg, msg, mistakes, checked, _relations(mistakes, got_any, expected, rtol, atol))
+        safe = f"wrong shape (expected {expected.shape})" + shape_hint(got_any.shape, expected.shape)
+        return Diff(False, msg, safe, mistakes, checked, _relations(mistakes, got_any, expected, rtol, atol))
     n = expected.size
     fin_e = np.isfinite(expected)
     fin_g = np.isfinite(got)
@@ -204,29 +216,17 @@ def compare(
             f"or the other way round (+inf, -inf and NaN are different); first at {_index(idx)}: "
             f"expected {_fmt(expected[idx])}, got {_fmt(got[idx])}"
         )
-        safe = (
-            f"{int(bad_nonfinite.sum())} of {n} entries are inf/NaN where a finite value is expected, or "
-            f"the other way round (first at entry {_index(idx)})"
-        )
+        safe = "inf/NaN where a finite value is expected, or the other way round"
     else:
-        rel = np.where(bad, err / np.maximum(np.abs(expected), atol if atol > 0 else 1e-300), 0.0)
         excess = np.where(bad, err - bound, -np.inf)
         idx = tuple(int(i) for i in np.unravel_index(int(np.argmax(excess)), expected.shape))
         public = (
             f"values differ at {k} of {n} entries; worst at {_index(idx)}: expected {_fmt(expected[idx])}, "
             f"got {_fmt(got[idx])} ({tolerance})"
         )
-        worst_rel = float(rel[idx])
-        rel_text = (
-            f"relative error {worst_rel:.2g}"
-            if np.isfinite(worst_rel) and expected[idx] != 0
-            else ("a nonzero value where zero is expected")
-        )
-        # the absolute tolerance may be scaled by the expected values: only the relative one is shown
-        safe = (
-            f"values differ at {k} of {n} entries; the worst, at entry {_index(idx)}: {rel_text} "
-            f"(rtol={rtol:g})"
-        )
+        # which entries, how many and by how much are the student's choice: not shown (and the
+        # absolute tolerance may be scaled by the expected values: only the relative one is named)
+        safe = f"wrong values (beyond the relative tolerance rtol={rtol:g})"
     if n <= 24:
         public += f"\n    expected {_fmt_array(expected)}\n    got      {_fmt_array(got)}"
     return Diff(False, public, safe, mistakes, checked, relations)

@@ -79,7 +79,8 @@ class StudentJob:
     (computed when None) identifies them in ``results.json``; ``renamed`` (``{exercise id: path in
     the folder}``) grades accepted renamed copies (``--accept-renamed``: a missing notebook's, or
     one newer than the notebook under its expected name); ``ignored`` (``{exercise id: [paths]}``)
-    are the other files standing for an exercise, which the feedback names.
+    are the other files standing for an exercise, which the feedback names; ``notes`` are told the
+    student (e.g. the files of their folder outside the assignment, which are not graded).
     """
 
     student: str
@@ -90,6 +91,7 @@ class StudentJob:
     exercises_hash: str | None = None
     renamed: Mapping[str, str] = field(default_factory=dict)
     ignored: Mapping[str, Sequence[str]] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -104,7 +106,10 @@ class ClassJob:
         Where the exercises come from (:class:`~.catalog.Catalog`); needed when ``exercises`` is
         None, and for ``jobs > 1`` (the workers look the exercises up by id in it).
     exercises : tuple of Exercise or None
-        The exercises graded; None: the catalog's for this class (:meth:`~.catalog.Catalog.for_class`).
+        The exercises graded (the columns of ``grades.csv``); None: the catalog's assigned ones
+        (:meth:`~.catalog.Catalog.for_class`). With a catalog, each student is graded on those of
+        them the catalog assigns that student (:meth:`~.catalog.Catalog.for_student`; exercises
+        the catalog does not know are graded for everyone).
     jobs : int
         Students graded in parallel (worker processes).
     options : GradingOptions

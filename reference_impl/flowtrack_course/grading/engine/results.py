@@ -129,11 +129,13 @@ def results_json(
     *,
     hidden_visibility: str = "after_published",
     extra: dict | None = None,
+    notes: Sequence[str] = (),
 ) -> dict:
     """Gradescope ``results.json`` for one student.
 
     Public tests are ``"visible"`` with the grader's message; hidden tests carry
-    ``hidden_visibility`` and, as output, their name and score only.
+    ``hidden_visibility`` and, as output, their name and score only. ``notes`` (what of the
+    submission was not graded, and why) open the output.
 
     Examples
     --------
@@ -147,7 +149,7 @@ def results_json(
     if hidden_visibility not in ("hidden", "after_due_date", "after_published", "visible"):
         raise ValueError(f"hidden_visibility must be a Gradescope visibility, got {hidden_visibility!r}")
     tests = []
-    lines = []
+    lines = [f"note: {n}" for n in notes]
     for r in results:
         lines.append(f"{r.exercise_id} ({r.title}): {round_score(r.score):g} / {round_score(r.max_score):g}")
         lines += [f"  problem: {p}" for p in r.problems]
@@ -206,8 +208,9 @@ def _fence_safe(text: str) -> str:
     return str(text).replace("```", "'''")
 
 
-def feedback_markdown(student: str, r: ExerciseResult) -> str:
-    """What a student may see of one exercise: public test details, hidden tests by name and score."""
+def feedback_markdown(student: str, r: ExerciseResult, notes: Sequence[str] = ()) -> str:
+    """What a student may see of one exercise: public test details, hidden tests by name and score;
+    ``notes`` on the whole submission (what was not graded) first."""
     out = [
         f"# {r.exercise_id}: {r.title}",
         "",
@@ -216,6 +219,8 @@ def feedback_markdown(student: str, r: ExerciseResult) -> str:
         f"**Score: {round_score(r.score):g} / {round_score(r.max_score):g}**",
         "",
     ]
+    if notes:  # the grader's words around file names a student chose: fenced like the problems
+        out += ["## Notes on your submission", "", "```text", *(_fence_safe(n) for n in notes), "```", ""]
     if r.problems:  # fenced like the public tests' messages: student text never renders as Markdown
         out += ["## Problems with the submission", ""]
         for p in r.problems:

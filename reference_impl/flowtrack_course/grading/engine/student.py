@@ -292,9 +292,10 @@ def grade_student(job: StudentJob, sandbox_pool: Any = None) -> dict:
             "isolation": isolation,
             "failures": failures,
         },
+        notes=job.notes,
     )
     for r in results:
-        write_atomic(dest / "feedback" / f"{r.exercise_id}.md", feedback_markdown(job.student, r))
+        write_atomic(dest / "feedback" / f"{r.exercise_id}.md", feedback_markdown(job.student, r, job.notes))
     write_atomic(results_path, json.dumps(data, indent=1))
     return {
         "student": job.student,

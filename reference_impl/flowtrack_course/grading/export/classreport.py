@@ -1,11 +1,11 @@
 """``misconceptions.csv`` and the class report of a ``flowtrack grade`` run.
 
 Both are built from a small interface: *mistakes* are ``{student: [(exercise id, mistake id),
-...]}``, read from the students' ``results.json`` by :func:`collect_mistakes`, which understands the
-forms the grader emits:
-
-- feedback lines ``mistake <id>: <message>`` in a test's ``output`` (the API contract's form);
-- ``extra_data.flowtrack.mistakes`` (records with ``exercise`` and ``id``, or pairs).
+...]}``, read from the students' ``results.json`` by :func:`collect_mistakes`: the grader's own
+records of what its mistake matcher recognised (``extra_data.flowtrack.mistakes``: records with
+``exercise`` and ``id``, or pairs), only ids of the course's catalogue when one is given. The
+``mistake <id>: <message>`` lines of a test's ``output`` are never parsed: that output also holds
+the student's own text (an exception's message in a public test), which could forge them.
 
 ``misconceptions.csv`` columns: ``exercise,mistake_id,count,students`` (students separated by
 ``;``, sorted), rows by decreasing ``count``. The class report (Markdown) has the score
@@ -20,10 +20,11 @@ import io
 import json
 import math
 import os
-import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
+from ..engine.classrun import OUTPUT_FILES
+from ..engine.mistakes import GENERIC
 from ..engine.results import student_folder
 
 __all__ = [
@@ -37,15 +38,18 @@ __all__ = [
 ]
 
 MISCONCEPTIONS_HEADER = ("exercise", "mistake_id", "count", "students")
-_MISTAKE_LINE = re.compile(r"^\s*mistake ([A-Za-z0-9][\w.\-]*):", re.MULTILINE)
 
 Mistakes = Mapping[str, Sequence[tuple[str, str]]]
 
 
-def collect_mistakes(out: str | os.PathLike, students: Sequence[str]) -> dict[str, list[tuple[str, str]]]:
+def collect_mistakes(
+    out: str | os.PathLike, students: Sequence[str], known: Collection[str] | None = None
+) -> dict[str, list[tuple[str, str]]]:
     """``{student: sorted unique [(exercise, mistake id)]}`` from ``out/<student>/results.json``.
 
-    Unreadable results give no mistakes (the grade run reports those students separately).
+    Only the grader's records count (see the module docstring); ``known`` (the catalogue's ids)
+    keeps only those. Unreadable results give no mistakes (the grade run reports those students
+    separately).
     """
     found: dict[str, list[tuple[str, str]]] = {}
     for s in students:
@@ -54,20 +58,13 @@ def collect_mistakes(out: str | os.PathLike, students: Sequence[str]) -> dict[st
         except (OSError, ValueError):
             continue
         pairs: set[tuple[str, str]] = set()
-        tests = data.get("tests", []) if isinstance(data, dict) else []
-        for t in tests if isinstance(tests, list) else []:
-            if not isinstance(t, dict):
-                continue
-            ex = (t.get("extra_data") or {}).get("exercise") or str(t.get("name", "")).split(":")[0]
-            for mid in _MISTAKE_LINE.findall(str(t.get("output", ""))):
-                pairs.add((str(ex), mid))
         info = (data.get("extra_data") or {}).get("flowtrack", {}) if isinstance(data, dict) else {}
         for item in info.get("mistakes", []) if isinstance(info, dict) else []:
             if isinstance(item, dict) and "exercise" in item and "id" in item:  # the grader's records
                 pairs.add((str(item["exercise"]), str(item["id"])))
             elif isinstance(item, (list, tuple)) and len(item) == 2:
                 pairs.add((str(item[0]), str(item[1])))
-        found[s] = sorted(pairs)
+        found[s] = sorted(p for p in pairs if known is None or p[1] in known)
     return found
 
 
@@ -170,8 +167,13 @@ def class_report_markdown(
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     bars = " ▁▂▃▄▅▆▇█"
+
+    def graded(ex) -> list[dict]:
+        """The rows of the students graded on ``ex`` (not those who chose another language)."""
+        return [r for r in ok if ex.id in r.get("exercises", {})]
+
     for ex in exercises:
-        d = score_distribution([float(r.get("exercises", {}).get(ex.id, 0.0)) for r in ok], ex.max_score)
+        d = score_distribution([float(r["exercises"][ex.id]) for r in graded(ex)], ex.max_score)
         peak = max(d["histogram"]) or 1
         spark = "".join(bars[math.ceil(8 * h / peak)] for h in d["histogram"])
         lines.append(
@@ -190,16 +192,17 @@ def class_report_markdown(
         for ex, mid, n, _ in mrows[:top]:
             lines.append(f"| {ex} | `{mid}` | {n} | {100.0 * n / max(len(ok), 1):.0f} % |")
         lines += ["", "Every (exercise, mistake) pair with its students is in `misconceptions.csv`."]
-    weakest = sorted(
-        exercises,
-        key=lambda ex: (
-            sum(float(r.get("exercises", {}).get(ex.id, 0.0)) for r in ok) / max(ex.max_score, 1e-12)
-        ),
-    )
+
+    def fraction(ex) -> float:
+        rows = graded(ex)
+        return sum(float(r["exercises"][ex.id]) for r in rows) / max(len(rows), 1) / max(ex.max_score, 1e-12)
+
+    weakest = sorted((ex for ex in exercises if graded(ex)), key=fraction)
     if ok and weakest:
         lines += ["", "## What to reteach first", ""]
         for ex in weakest[:3]:
-            mean = sum(float(r.get("exercises", {}).get(ex.id, 0.0)) for r in ok) / len(ok)
+            rows = graded(ex)
+            mean = sum(float(r["exercises"][ex.id]) for r in rows) / len(rows)
             share = 100.0 * mean / ex.max_score if ex.max_score else 0.0
             lines.append(f"- {ex.id} ({ex.title}): mean {share:.0f} % of the points")
     lines.append("")
@@ -210,13 +213,24 @@ def write_class_outputs(
     out: str | os.PathLike, rows: Sequence[dict], exercises: Sequence, mistakes: Mistakes | None = None
 ) -> tuple[Path, Path]:
     """Write ``out/misconceptions.csv`` and ``out/class_report.md``; mistakes default to
-    :func:`collect_mistakes` of the rows' students. Returns both paths."""
+    :func:`collect_mistakes` of the rows' students (the ids of the exercises' catalogues and the
+    generic ones). Returns both paths."""
     from ..engine.results import write_atomic
 
     out = Path(out)
     if mistakes is None:
-        mistakes = collect_mistakes(out, [r["student"] for r in rows if "error" not in r])
-    csv_path = write_misconceptions_csv(out / "misconceptions.csv", mistakes)
-    report = out / "class_report.md"
+        known: set[str] | None = set()
+        for ex in exercises:
+            catalogue = getattr(ex, "catalogue", None)
+            ids = set(catalogue) if catalogue is not None else {m.id for m in getattr(ex, "mistakes", ())}
+            if not ids and not hasattr(ex, "mistakes"):
+                known = None  # exercises that do not say which mistakes they name: keep every record
+                break
+            known |= ids
+        if known is not None:
+            known |= {m.id for m in GENERIC}
+        mistakes = collect_mistakes(out, [r["student"] for r in rows if "error" not in r], known)
+    csv_path = write_misconceptions_csv(out / OUTPUT_FILES["misconceptions"], mistakes)
+    report = out / OUTPUT_FILES["class_report"]
     write_atomic(report, class_report_markdown(rows, exercises, mistakes))
     return csv_path, report

@@ -15,6 +15,8 @@ The zip holds::
                       reference_impl/flowtrack_course and reference_impl/grading_sandbox)
     course/exercises/<id>/   each exercise's grading files (its grading module; no notebook, worked
                       solution or test answers: :func:`~..engine.discovery.grading_files`)
+    course/assignment.toml   what counts (:mod:`~..assignment`): the course's, or ``--assignment-file``;
+                      absent when neither exists (every notebook exercise, no other language)
 
 ``run_autograder`` calls ``python -m flowtrack_course.grading.grade.gradescope run``
 (:func:`~..grade.gradescope.run_submission`); its paths come from the environment so that it can be
@@ -146,6 +148,7 @@ def build_autograder(
     source: str | os.PathLike | None = None,
     secret_file: str | os.PathLike | None = None,
     exercises: str | list[str] | tuple[str, ...] | None = None,
+    assignment: str | os.PathLike | None = None,
 ) -> Path:
     """Write the Gradescope autograder zip to ``out`` (see the module docstring); returns its path.
 
@@ -156,11 +159,16 @@ def build_autograder(
     sandbox's unprivileged uid cannot read it, and it is not bound into the sandbox) and seeds the
     hidden tests. ``exercises`` (ids or their ``exNN`` prefixes, or a comma-separated string; default
     all) become ``run_autograder``'s default (one Gradescope assignment per exercise set).
+    ``assignment`` (an ``assignment.toml``; default: the course's own, when it has one) goes into the
+    zip as ``course/assignment.toml``: what each submission is graded on.
     """
+    from ..assignment import FILE_NAME
     from ..sources import course_catalog
 
     root = _package_root(source)
-    ex_ids = course_catalog(root).resolve_ids(exercises)
+    assignment_file = Path(assignment) if assignment is not None else root / FILE_NAME
+    catalog = course_catalog(root, assignment if assignment is not None else None)  # checks it
+    ex_ids = catalog.resolve_ids(exercises)
     secret = None
     if secret_file is not None:
         from ..engine.seeds import read_secret
@@ -201,6 +209,8 @@ def build_autograder(
         for folder in exercise_folders(root):
             for p in grading_files(folder):
                 add(zf, f"course/{p.relative_to(root).as_posix()}", p.read_bytes())
+        if assignment_file.is_file():
+            add(zf, f"course/{FILE_NAME}", assignment_file.read_bytes())
     os.replace(tmp, out)
     return out
 

@@ -27,6 +27,11 @@ Formats written:
 
 ``mode="exercises"`` writes one column per exercise (``<assignment>: <exercise id>``),
 ``mode="total"`` one column with the total.
+
+Every text cell (roster names, e-mails, ids, sections, column names) that a spreadsheet would read
+as a formula, i.e. one starting with ``=``, ``+``, ``-``, ``@``, a tab or a carriage return, is
+written with a leading ``'`` (:func:`text_cell`): a roster name ``=HYPERLINK(...)`` stays text in
+whatever program opens the file.
 """
 
 from __future__ import annotations
@@ -49,6 +54,7 @@ __all__ = [
     "read_roster",
     "roster_entry",
     "roster_key",
+    "text_cell",
 ]
 
 _ALIASES = {
@@ -115,6 +121,19 @@ def roster_entry(roster: Mapping[str, RosterEntry], student: str) -> RosterEntry
         return entry
     key = roster_key(student)
     return next((e for sid, e in roster.items() if roster_key(sid) == key), None)
+
+
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def text_cell(text: str) -> str:
+    """``text`` as a CSV cell no spreadsheet evaluates: a leading ``'`` when it starts like a formula.
+
+    >>> text_cell('=HYPERLINK("http://x", "y")'), text_cell("Doe, Jane"), text_cell("")
+    ('\'=HYPERLINK("http://x", "y")', 'Doe, Jane', '')
+    """
+    text = str(text)
+    return "'" + text if text.startswith(_FORMULA_START) else text
 
 
 def _norm(col: str) -> str:
@@ -201,7 +220,8 @@ def read_roster(path: str | os.PathLike) -> dict[str, RosterEntry]:
 def read_grades_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
     """``(exercise ids, rows)`` of a ``flowtrack grade`` grades.csv.
 
-    Each row: ``{"student", "exercises": {id: float}, "score": float, "max": float}``.
+    Each row: ``{"student", "exercises": {id: float}, "score": float, "max": float}``; a blank cell
+    (an exercise not assigned to that student) is left out of ``exercises``.
     """
     path = Path(path)
     if not path.is_file():
@@ -220,12 +240,11 @@ def read_grades_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
         if len(row) != len(header):
             raise ValueError(f"grades {path}, row {rowno}: {len(row)} fields, expected {len(header)}")
         try:
-            nums = [float(x) for x in row[1:]]
+            nums = [None if x.strip() == "" and i < len(ids) else float(x) for i, x in enumerate(row[1:])]
         except ValueError as exc:
             raise ValueError(f"grades {path}, row {rowno}: {exc}") from None
-        rows.append(
-            {"student": row[0], "exercises": dict(zip(ids, nums[:-2])), "score": nums[-2], "max": nums[-1]}
-        )
+        scores = {i: v for i, v in zip(ids, nums[:-2]) if v is not None}
+        rows.append({"student": row[0], "exercises": scores, "score": nums[-2], "max": nums[-1]})
     return ids, rows
 
 
@@ -295,7 +314,7 @@ def canvas_csv(
         cols = [(f"{assignment} ({assignment_id})", None, total_max)]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["Student", "ID", "SIS User ID", "SIS Login ID", "Section", *[c[0] for c in cols]])
+    w.writerow(["Student", "ID", "SIS User ID", "SIS Login ID", "Section", *[text_cell(c[0]) for c in cols]])
     w.writerow(["    Points Possible", "", "", "", "", *[_fmt(c[2]) for c in cols]])
     body, warnings = _class_rows(rows, roster)
     for entry, row in body:
@@ -305,8 +324,9 @@ def canvas_csv(
             if row is None:
                 values.append("")
             else:
-                values.append(_fmt(row["score"] if ex_id is None else row["exercises"].get(ex_id, 0.0)))
-        w.writerow([entry.sortable_name, entry.lms_id, entry.sis_user_id, login, entry.section, *values])
+                values.append(_fmt(row["score"] if ex_id is None else row["exercises"].get(ex_id)))
+        texts = [entry.sortable_name, entry.lms_id, entry.sis_user_id, login, entry.section]
+        w.writerow([*map(text_cell, texts), *values])
     return buf.getvalue(), warnings
 
 
@@ -327,7 +347,7 @@ def moodle_csv(
     cols = _columns(ids, dict(points or {}), mode, assignment, None)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["First name", "Last name", "ID number", "Email address", *[c[0] for c in cols]])
+    w.writerow(["First name", "Last name", "ID number", "Email address", *[text_cell(c[0]) for c in cols]])
     body, warnings = _class_rows(rows, roster)
     no_id = []
     for entry, row in body:
@@ -336,10 +356,11 @@ def moodle_csv(
             idnumber = entry.student
             no_id.append(entry.student)
         values = [
-            "" if row is None else _fmt(row["score"] if ex_id is None else row["exercises"].get(ex_id, 0.0))
+            "" if row is None else _fmt(row["score"] if ex_id is None else row["exercises"].get(ex_id))
             for _, ex_id, _ in cols
         ]
-        w.writerow([entry.first_name or entry.student, entry.last_name, idnumber, entry.email, *values])
+        texts = [entry.first_name or entry.student, entry.last_name, idnumber, entry.email]
+        w.writerow([*map(text_cell, texts), *values])
     if no_id:
         warnings.append(
             f"{len(no_id)} student(s) without e-mail or ID number in the roster (their folder name is used "

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from grading_sandbox import SandboxConfigError
 
-from ..engine.classrun import run_class, uniform_failures
+from ..engine.classrun import OUTPUT_FILES, run_class, uniform_failures
 from ..engine.jobs import ClassJob
 from ..engine.spec import CannotGradeHere
 
@@ -44,7 +44,7 @@ def grade_class(job: ClassJob, *, assignment: str = "flowtrack", roster: dict | 
     from ..export.gradebook import write_gradebook
 
     rows, exercises, students = run_class(job)
-    write_gradebook(job.out / "gradebook.db", exercises, job.out, students, assignment=assignment,
+    write_gradebook(job.out / OUTPUT_FILES["gradebook"], exercises, job.out, students, assignment=assignment,
                     roster=roster)
     return rows
 
@@ -140,7 +140,7 @@ def run_grade(
     except (SandboxConfigError, CannotGradeHere) as exc:  # found before any student was graded
         return GradeRun(3, reason=f"{exc}\n(graded no student: nothing was written)")
     out = job.out
-    files = {"grades": out / "grades.csv", "gradebook": out / "gradebook.db"}
+    files = {"grades": out / OUTPUT_FILES["grades"], "gradebook": out / OUTPUT_FILES["gradebook"]}
     files["misconceptions"], files["class_report"] = write_class_outputs(out, rows, exercises)
     summary = []
     graded = sum(1 for r in rows if not r.get("skipped") and "error" not in r)
@@ -194,7 +194,7 @@ def run_grade(
         path, warnings = export_lms(
             lms,
             files["grades"],
-            out / f"{lms}.csv",
+            out / OUTPUT_FILES[lms],
             roster=roster_map,
             mode=lms_mode,
             assignment=assignment,

@@ -69,9 +69,10 @@ def run_submission(
 ) -> dict:
     """Grade one Gradescope submission folder and write ``results`` (Gradescope's results.json).
 
-    ``exercises`` default to the ``catalog``'s for this submission (the course's notebooks and the
-    answers in other languages it holds; ``catalog`` default: the course folder of
-    ``$FLOWTRACK_COURSE``, else the current folder). ``options``
+    ``exercises`` default to the ``catalog``'s for this submission (what the course's assignment
+    gives this student: its notebooks and, where it assigns other languages, the answers in the
+    student's; files beyond it are ignored with a note; ``catalog`` default: the course folder of
+    ``$FLOWTRACK_COURSE``, else the current folder, with its ``assignment.toml``). ``options``
     (:class:`~..engine.jobs.GradingOptions`) carry the key and the paths to hide. Never raises
     because of the submission; an internal error still writes a results.json with score 0 and the
     error as output, so Gradescope shows something.
@@ -85,15 +86,20 @@ def run_submission(
 
     results = Path(results)
     try:
+        notes: tuple[str, ...] = ()
         if exercises is None:
             if catalog is None:
                 from ..sources import course_catalog
 
                 catalog = course_catalog()
+            # what the assignment gives this student: an upload beyond it is ignored (with a note),
+            # never added to the total (which could then exceed 100 %)
             exercises = catalog.for_student(submission)
+            notes = tuple(catalog.ignored(submission))
         options = replace(options or GradingOptions(), force=True)
         with tempfile.TemporaryDirectory(prefix="flowtrack-gs-") as tmp:
-            job = StudentJob(student, Path(submission), Path(tmp), tuple(exercises), options.hiding(tmp))
+            job = StudentJob(student, Path(submission), Path(tmp), tuple(exercises), options.hiding(tmp),
+                             notes=notes)
             summary = grade_student(job)
             results_file = Path(tmp) / student_folder(student) / "results.json"
             data = json.loads(results_file.read_text(encoding="utf-8"))

@@ -2,7 +2,9 @@
 :class:`~flowtrack_course.grading.engine.catalog.ExerciseSource`), and their files in the bundle.
 
 A course's language exercises are discovered with its notebooks (:func:`.exercises.language_exercises`);
-each is graded when a student submitted its file. The instructor's sources, with their solutions
+those the instructor's assignment lists count (:mod:`flowtrack_course.grading.assignment`: which
+languages, which exercises, one language of each student's choice or all), whatever the students
+upload: a file outside the assignment is ignored with a note. The instructor's sources, with their solutions
 between ``BEGIN SOLUTION`` / ``END SOLUTION`` comment lines, are in the folder of the exercise they
 are a form of, one sub-folder per language::
 
@@ -35,23 +37,55 @@ GUIDES_DIR = "languages"
 
 class LanguageSource:
     """The answers in C++, Java, Octave and Mathematica of the course ``course`` (see the module
-    docstring): each (problem, language) is graded when a student submitted its file.
+    docstring). ``languages`` are the assigned languages (none by default), ``exercises`` the ids of
+    the course's exercises whose forms in them count (None: all), ``choice`` ``"one"`` (each student
+    answers in one of ``languages``, their choice) or ``"all"``.
 
     Picklable (by its course, discovered again on the other side), as a class run's workers need.
+
+    Raises
+    ------
+    ValueError
+        An unknown language or exercise, or (``choice="one"``) an exercise that is not set in every
+        listed language (every choice must be worth the same).
     """
 
-    def __init__(self, course: ExerciseSet) -> None:
+    def __init__(self, course: ExerciseSet, languages: Sequence[str] = (),
+                 exercises: Sequence[str] | None = None, choice: str = "one") -> None:
         self.course = course
         self._exercises = language_exercises(course)
+        self.languages = tuple(languages)
+        self.owners = None if exercises is None else tuple(exercises)
+        self.choice = choice
+        unknown = [lang for lang in self.languages if lang not in GRADED_LANGUAGES]
+        if unknown:
+            raise ValueError(f"languages: no graded language {unknown}; known: {', '.join(GRADED_LANGUAGES)}")
+        if choice not in ("one", "all"):
+            raise ValueError(f"choice must be 'one' or 'all', got {choice!r}")
+        self._assigned = tuple(ex for ex in self._exercises if ex.language in self.languages
+                               and (self.owners is None or ex.exercise in self.owners))
+        if choice == "one" and len(self.languages) > 1:
+            owners = sorted({ex.exercise for ex in self._assigned})
+            for owner in owners:
+                missing = [lang for lang in self.languages
+                           if not any(ex.exercise == owner and ex.language == lang for ex in self._assigned)]
+                if missing:
+                    raise ValueError(
+                        f"{owner} is not set in {', '.join(missing)}: with language_choice = 'one' every "
+                        "listed exercise must be set in every listed language (each choice is worth the "
+                        "same); list the exercises that are (language_exercises) or use "
+                        "language_choice = 'all'")
 
     def __reduce__(self):
-        return (LanguageSource, (self.course,))
+        return (LanguageSource, (self.course, self.languages, self.owners, self.choice))
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, LanguageSource) and other.course.root == self.course.root
+        return isinstance(other, LanguageSource) and (other.course.root, other.languages, other.owners,
+                                                      other.choice) == (self.course.root, self.languages,
+                                                                        self.owners, self.choice)
 
     def __hash__(self) -> int:
-        return hash((LanguageSource, self.course.root))
+        return hash((LanguageSource, self.course.root, self.languages, self.owners, self.choice))
 
     @property
     def catalogue(self) -> Catalogue:
@@ -71,28 +105,68 @@ class LanguageSource:
                 return ex
         return None
 
-    def answered(self, student_dir: Path) -> Sequence[LanguageExercise]:
-        """The language exercises one student's folder holds a source file of (by file name, anywhere
-        below it: Gradescope uploads are often flat)."""
+    def _files(self, student_dir: Path) -> dict[str, Path]:
+        """``{file name: first path}`` of the source files below a student's folder (by file name,
+        anywhere: Gradescope uploads are often flat)."""
         root = Path(student_dir)
         if not root.is_dir():
-            return ()
+            return {}
         exts = {TOOLCHAINS[lang].extension for lang in GRADED_LANGUAGES}
-        names = {p.name for p in root.rglob("*") if p.suffix in exts}
+        out: dict[str, Path] = {}
+        for p in sorted(root.rglob("*")):
+            if p.suffix in exts and p.name not in out:
+                out[p.name] = p
+        return out
+
+    def answered(self, student_dir: Path) -> Sequence[LanguageExercise]:
+        """The language exercises (assigned or not) one student's folder holds a source file of."""
+        names = self._files(student_dir)
         return tuple(ex for ex in self._exercises if ex.source_name in names)
 
-    def submitted(self, submissions: Path) -> Sequence[LanguageExercise]:
-        """The language exercises at least one student folder of ``submissions`` holds a source file of.
+    def assigned(self) -> Sequence[LanguageExercise]:
+        """The assigned items: each listed exercise in each listed language."""
+        return self._assigned
 
-        ``flowtrack grade`` adds them to the notebooks, so a class answering only in Python gets the
-        same ``grades.csv`` as before, and every answered (exercise, language) item gets its column.
-        """
-        root = Path(submissions)
-        found: set[str] = set()
-        for d in sorted(root.iterdir()) if root.is_dir() else []:
-            if d.is_dir() and not d.name.startswith("."):
-                found.update(ex.id for ex in self.answered(d))
-        return tuple(ex for ex in self._exercises if ex.id in found)
+    def chosen(self, student_dir: Path) -> str | None:
+        """The language a student is graded in (``choice="one"``): the listed one they submitted most
+        assigned files in (the first listed on a tie, or when they submitted none)."""
+        if not self.languages:
+            return None
+        names = self._files(student_dir)
+        count = {lang: sum(ex.language == lang and ex.source_name in names for ex in self._assigned)
+                 for lang in self.languages}
+        return max(self.languages, key=lambda lang: (count[lang], -self.languages.index(lang)))
+
+    def for_student(self, student_dir: Path) -> Sequence[LanguageExercise]:
+        """The assigned items of the student's language (``"one"``), or all of them (``"all"``)."""
+        if self.choice == "all" or len(self.languages) <= 1:
+            return self._assigned
+        lang = self.chosen(student_dir)
+        return tuple(ex for ex in self._assigned if ex.language == lang)
+
+    def ignored(self, student_dir: Path) -> list[str]:
+        """A note per submitted source file that is not graded, and why."""
+        files = self._files(student_dir)
+        graded = {ex.id for ex in self.for_student(student_dir)}
+        lang = self.chosen(student_dir) if self.choice == "one" and len(self.languages) > 1 else None
+        assigned = {ex.id for ex in self._assigned}
+        notes = []
+        for ex in self._exercises:
+            path = files.get(ex.source_name)
+            if path is None or ex.id in graded:
+                continue
+            shown = path.relative_to(student_dir).as_posix()
+            title = TOOLCHAINS[ex.language].title
+            if ex.language not in self.languages:
+                why = f"answers in {title} are not part of this assignment"
+            elif ex.id not in assigned:
+                why = f"{ex.exercise} answered in {title} is not part of this assignment"
+            else:
+                chosen = TOOLCHAINS[lang].title if lang else ""
+                why = (f"this assignment is answered in one language of your choice, and yours is {chosen} "
+                       "(the listed language you submitted most files in)")
+            notes.append(f"ignored {shown}: {why}")
+        return notes
 
     # -- the instructor's sources and the bundle -----------------------------------------------------
     def instructor_source(self, ex: LanguageExercise) -> Path | None:
