@@ -61,6 +61,7 @@ from __future__ import annotations
 import argparse
 import copy
 import csv
+import json
 import os
 import pickle
 import platform
@@ -190,7 +191,8 @@ def main(argv=None) -> int:
     ap.add_argument("--limit", type=int, default=None,
                     help="held-out: N sequences per split, spread evenly over it")
     ap.add_argument("--workdir", default=None,
-                    help="held-out: keep the sequences and demo outputs here (reused when present)")
+                    help="held-out: keep the sequences and the demo's outputs here; a later run reuses "
+                         "them (delete DIR after changing the code)")
     ap.add_argument("--flow-image", type=int, nargs=2, default=FLOW_IMAGE, metavar=("H", "W"),
                     help="image size of the scene-flow section's scenes (default %(default)s, the demo's; "
                          "the first RGB-D runs used 120 160)")
@@ -681,17 +683,35 @@ def _same_rows(a, b) -> bool:
     return True
 
 
-def run_recorded_demo(seq: Path, out: Path, intrinsics: str) -> tuple[float, dict]:
+def run_recorded_demo(seq: Path, out: Path, intrinsics: str, reuse: bool = False) -> dict:
     """``flowtrack demo --input seq --out out`` (the CLI, in a child process) with its tracker's inputs
-    recorded (``benchmarks/_record_demo.py``); returns the wall time and the record."""
+    recorded (``benchmarks/_record_demo.py``).
+
+    Returns ``{"secs", "record", "error"}``: the wall time, the record, and the CLI's error message when
+    it failed (exit status not 0; then there is no ``tracks.csv`` to score). With ``reuse`` an earlier
+    run's outputs in ``out`` are taken as they are (``--workdir``).
+    """
     rec_path = out.parent / f"{out.name}.record.pkl"
-    t0 = time.perf_counter()
-    subprocess.run([sys.executable, str(Path(__file__).with_name("_record_demo.py")), str(rec_path), "demo",
-                    "--input", str(seq), "--intrinsics", intrinsics, "--out", str(out), "--no-real-data",
-                    "--no-gif", "--no-progress"], check=True, stdout=subprocess.DEVNULL)
-    secs = time.perf_counter() - t0
-    with open(rec_path, "rb") as fh:
-        return secs, pickle.load(fh)
+    meta_path = out.parent / f"{out.name}.run.json"
+    if reuse and meta_path.is_file():
+        meta = json.loads(meta_path.read_text())
+    else:
+        t0 = time.perf_counter()
+        recorder = str(Path(__file__).with_name("_record_demo.py"))
+        cmd = [sys.executable, recorder, str(rec_path), "demo", "--input", str(seq), "--intrinsics",
+               intrinsics, "--out", str(out), "--no-real-data", "--no-gif", "--no-progress"]
+        proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        error = None
+        if proc.returncode != 0:
+            lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+            error = next((ln for ln in lines if "error" in ln.lower()), lines[-1] if lines else "?")
+        meta = {"secs": time.perf_counter() - t0, "error": error, "returncode": proc.returncode}
+        meta_path.write_text(json.dumps(meta))
+    record = None
+    if rec_path.is_file():
+        with open(rec_path, "rb") as fh:
+            record = pickle.load(fh)
+    return {**meta, "record": record}
 
 
 def heldout_sequences(split, limit=None, quick=False):
@@ -785,25 +805,28 @@ def heldout_section(args) -> bool:
                     _evalscenes.write_sequence(seq, spec)
                 intrinsics = ",".join((seq / "intrinsics.txt").read_text().split("\n")[1].split())
                 out = work / f"out-{split}-{spec.seed}-{spec.n_frames}"
-                secs, record = run_recorded_demo(seq, out, intrinsics)
-                with open(out / "tracks.csv", newline="") as fh:
-                    rows = list(csv.DictReader(fh))
+                run = run_recorded_demo(seq, out, intrinsics, reuse=args.workdir is not None)
                 truth = _evalscenes.read_objects_csv(seq / "objects.csv")
                 frames = sorted(truth)
-                flow_rows = replay(record, frames)
-                pos_rows = replay(record, frames, position_only=True)
-                res = {"spec": spec, "secs": secs, "ours": score_tracks_rows(rows, truth),
-                       "confirmed_only": score_tracks_rows(rows, truth, ("confirmed",)),
-                       "replayed": _same_rows(rows, flow_rows),
-                       "position_only": score_tracks_rows(pos_rows, truth)}
+                res = {"spec": spec, "secs": run["secs"], "error": run["error"]}
+                if run["error"] is None:
+                    with open(out / "tracks.csv", newline="") as fh:
+                        rows = list(csv.DictReader(fh))
+                    res.update(ours=score_tracks_rows(rows, truth),
+                               confirmed_only=score_tracks_rows(rows, truth, ("confirmed",)),
+                               replayed=_same_rows(rows, replay(run["record"], frames)),
+                               position_only=score_tracks_rows(replay(run["record"], frames, True), truth))
+                    o = res["ours"]
+                    tqdm.write(f"{split} {spec.name}: MOTA {o['mota']:.3f}, IDsw {o['id_switches']}, "
+                               f"FP {o['fp']} ({100 * o['fp_share']:.1f} %), FN {o['fn']}; position-only "
+                               f"MOTA {res['position_only']['mota']:.3f}; replay identical: "
+                               f"{res['replayed']}; {run['secs']:.0f} s")
+                else:
+                    tqdm.write(f"{split} {spec.name}: the CLI failed: {run['error']}")
                 results[split].append(res)
-                o = res["ours"]
-                tqdm.write(f"{split} {spec.name}: MOTA {o['mota']:.3f}, IDsw {o['id_switches']}, "
-                           f"FP {o['fp']} ({100 * o['fp_share']:.1f} %), FN {o['fn']}; position-only MOTA "
-                           f"{res['position_only']['mota']:.3f}; replay identical: {res['replayed']}; "
-                           f"{secs:.0f} s")
-            if split == "test" and results[split] and not partial:
-                worst = min(results[split], key=lambda r: r["ours"]["mota"])
+            scored = [r for r in results[split] if r["error"] is None]
+            if split == "test" and scored and not partial:
+                worst = min(scored, key=lambda r: r["ours"]["mota"])
                 spec = worst["spec"]
                 seq = work / f"{split}-{spec.seed}-{spec.n_frames}"
                 out = work / f"out-{split}-{spec.seed}-{spec.n_frames}"
@@ -856,6 +879,10 @@ def heldout_section(args) -> bool:
                   "| bars met | time |",
                   "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|:---:|---:|"]
         for r in res:
+            if r["error"] is not None:
+                lines.append(f"| {r['spec'].name} | {r['spec'].n_frames} | | **the CLI failed**: "
+                             f"`{r['error']}` | | | | | | | | NO | {r['secs']:.0f} s |")
+                continue
             o, c, p = r["ours"], r["confirmed_only"], r["position_only"]
             met = (o["mota"] >= HELDOUT_BARS["mota"] and o["id_switches"] <= HELDOUT_BARS["id_switches"]
                    and o["fp_share"] <= HELDOUT_BARS["fp_share"])
@@ -863,6 +890,13 @@ def heldout_section(args) -> bool:
                          f"| {o['id_switches']} | {o['fp']} | {100 * o['fp_share']:.1f} % | {o['fn']} "
                          f"| {c['mota']:.3f} / {c['fp']} | {p['mota']:.3f} / {p['id_switches']} / {p['fp']} "
                          f"| {yes[r['replayed']]} | {yes[met]} | {r['secs']:.0f} s |")
+        failed = [r for r in res if r["error"] is not None]
+        res = [r for r in res if r["error"] is None]
+        if failed:
+            why = "; ".join(f"{r['spec'].name}: `{r['error']}`" for r in failed)
+            lines += ["", f"**{len(failed)} of {len(res) + len(failed)} runs failed** (the command exited "
+                      f"with an error, no `tracks.csv`): {why}. The figures below are over the runs that "
+                      "finished; the bars count a failed run as missed."]
         if not res:
             continue
         mota = np.array([r["ours"]["mota"] for r in res])
@@ -889,6 +923,7 @@ def heldout_section(args) -> bool:
             (f"false positives ≤ {100 * HELDOUT_BARS['fp_share']:.0f} % of the ground-truth objects on every "
              f"sequence: worst {100 * fps.max():.1f} %", fps.max() <= HELDOUT_BARS["fp_share"]),
             ("the replayed tracker reproduces every tracks.csv", all(r["replayed"] for r in res)),
+            (f"every run finishes: {len(failed)} failed", not failed),
         ]
         judged = split == "test" or splits == ("train",)
         lines += [f"Bars of issue 25 on the {split} split"
