@@ -44,9 +44,9 @@ frames; ``valid``: the sensor gave a depth within ``4 sigma(z) + one quantisatio
 true surface (holes and flying pixels are not valid: a flying pixel's point lies on no surface, so it
 has no true displacement), and ``flow3d`` is NaN where not valid; ``visible1``: the point is seen
 again in frame t+1 (inside the image, not hidden); ``moving``: the pixel lies on an object that moves.
-Per frame each object's centre (camera frame; the body's centre of symmetry) and its visible pixel
-count and visible surface area (m²). The camera is static (the tracker assumes one); ``camera_motion``
-is not modelled.
+Per frame each object's centre (camera frame; the body's centre of symmetry), its visible pixel
+count and visible surface area (m²), and the largest speed any of its points can have (m/s). The
+camera is static (the tracker assumes one); a moving camera is not modelled.
 
 Everything is deterministic in the seed (numpy's PCG64 streams), numpy and PIL only: no code is
 shared with ``flowtrack`` (nor with ``benchmarks/_boxes.py``; its ray caster, textures, camera and
@@ -742,8 +742,9 @@ def make_pair(spec: PairSpec) -> dict:
         ``labels1`` (H, W) int object ids (0 = background); ``moving`` (H, W) bool (on a moving object);
         ``visible1`` (H, W) bool (the point is seen in frame 1); ``flow2d`` (H, W, 2) true optical flow
         (px); ``depth_true0``, ``depth_true1``; ``objects``: per frame {id: (centre (3,), visible
-        pixels, visible area m²)}; ``max_px`` the largest true optical flow on a visible object pixel;
-        ``gain_ratio`` the brightness change; ``shapes`` {id: shape}; ``spec``, ``name``.
+        pixels, visible area m², speed bound m/s)}; ``max_px`` the largest true optical flow on a
+        visible object pixel; ``gain_ratio`` the brightness change; ``shapes`` {id: shape}; ``spec``,
+        ``name``.
     """
     scene = _pair_scene(spec)
     rng = np.random.default_rng([spec.seed, 1])
@@ -796,13 +797,17 @@ def make_pair(spec: PairSpec) -> dict:
 
 
 def _object_truth(scene, r, t) -> dict:
-    """{id: (centre (3,), visible pixels, visible surface area m²)} of every object at time ``t``."""
+    """{id: (centre (3,), visible pixels, visible surface area m², speed bound m/s)} of every object at
+    time ``t``; the bound (|centre velocity| + |angular velocity| × bounding radius) is the largest
+    speed any point of the body can have."""
     fx, fy = scene.K[0], scene.K[1]
     out = {}
     for k, ob in enumerate(scene.objects, start=1):
         m = r["sid"] == k
         area = float((r["z"][m] ** 2 / (fx * fy * np.maximum(r["cos"][m], 0.2))).sum())
-        out[k] = (ob.pose(t)[1].copy(), int(m.sum()), area)
+        cdot = ob.v + ob.a * (t - ob.t0)
+        speed = (float(np.linalg.norm(cdot)) + float(np.linalg.norm(ob.w)) * ob.rho) * FPS
+        out[k] = (ob.pose(t)[1].copy(), int(m.sum()), area, speed)
     return out
 
 
@@ -891,12 +896,13 @@ def write_sequence(root, spec: SequenceSpec, progress=None) -> dict:
     Files: ``rgb/<stamp>.png``, ``depth/<stamp>.png`` (16 bit, 1/5000 m, 0 = none), ``rgb.txt``,
     ``depth.txt`` (colour 1 ms after depth, both rendered at the depth stamp; frames 1/30 s apart with
     ±1 ms jitter), ``intrinsics.txt`` (fx fy cx cy), ``objects.csv`` (``frame,id,x,y,z,visible_pixels,
-    visible_area_m2``: every object in every frame, its centre in that frame's camera frame, metres;
-    0 visible pixels when it is outside the image or hidden) and ``scene.json`` (the spec and each
-    object's shape). ``progress``: a callable given each frame index, or None.
+    visible_area_m2,max_point_speed``: every object in every frame, its centre in that frame's camera
+    frame, metres; 0 visible pixels when it is outside the image or hidden; the largest speed any of
+    its points can have, m/s) and ``scene.json`` (the spec and each object's shape). ``progress``: a
+    callable given each frame index, or None.
 
-    Returns ``{"intrinsics": "fx,fy,cx,cy", "truth": {frame: {id: (centre, visible pixels, area)}},
-    "stamps": [...], "shapes": {id: shape}}``.
+    Returns ``{"intrinsics": "fx,fy,cx,cy", "truth": {frame: {id: (centre, visible pixels, area,
+    speed)}}, "stamps": [...], "shapes": {id: shape}}``.
     """
     root = Path(root)
     (root / "rgb").mkdir(parents=True, exist_ok=True)
@@ -905,7 +911,7 @@ def write_sequence(root, spec: SequenceSpec, progress=None) -> dict:
     t0 = 1500000000.0 + spec.seed
     rgb_lines = ["# color images", "# timestamp filename"]
     depth_lines = ["# depth maps", "# timestamp filename"]
-    rows = ["frame,id,x,y,z,visible_pixels,visible_area_m2"]
+    rows = ["frame,id,x,y,z,visible_pixels,visible_area_m2,max_point_speed"]
     truth, stamps = {}, []
     scene = _sequence_scene(spec)
     for i, rgb, depth, objects in _frames(scene, spec):
@@ -918,8 +924,8 @@ def write_sequence(root, spec: SequenceSpec, progress=None) -> dict:
         depth_lines.append(f"{ts:.6f} depth/{ts:.6f}.png")
         truth[i] = objects
         stamps.append(ts)
-        for k, (c, npx, area) in objects.items():
-            rows.append(f"{i},{k},{c[0]:.6f},{c[1]:.6f},{c[2]:.6f},{npx},{area:.6f}")
+        for k, (c, npx, area, speed) in objects.items():
+            rows.append(f"{i},{k},{c[0]:.6f},{c[1]:.6f},{c[2]:.6f},{npx},{area:.6f},{speed:.6f}")
         if progress is not None:
             progress(i)
     (root / "rgb.txt").write_text("\n".join(rgb_lines) + "\n")
@@ -934,16 +940,20 @@ def write_sequence(root, spec: SequenceSpec, progress=None) -> dict:
             "shapes": shapes}
 
 
-def read_objects_csv(path) -> dict[int, dict[int, tuple[np.ndarray, int, float]]]:
-    """``objects.csv`` back as ``{frame: {id: (centre (3,), visible pixels, visible area m²)}}``."""
+def read_objects_csv(path) -> dict[int, dict[int, tuple[np.ndarray, int, float, float]]]:
+    """``objects.csv`` back as ``{frame: {id: (centre (3,), visible pixels, visible area m², speed
+    bound m/s)}}`` (NaN for a column the file does not have)."""
     import csv
+
+    def num(r, key):
+        return float(r[key]) if r.get(key) not in (None, "") else np.nan
 
     out: dict[int, dict] = {}
     with open(path, newline="") as fh:
         for r in csv.DictReader(fh):
             c = np.array([float(r[k]) for k in "xyz"])
-            area = float(r["visible_area_m2"]) if r.get("visible_area_m2") not in (None, "") else np.nan
-            out.setdefault(int(r["frame"]), {})[int(r["id"])] = (c, int(r["visible_pixels"]), area)
+            out.setdefault(int(r["frame"]), {})[int(r["id"])] = (
+                c, int(r["visible_pixels"]), num(r, "visible_area_m2"), num(r, "max_point_speed"))
     return out
 
 

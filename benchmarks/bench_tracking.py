@@ -608,20 +608,23 @@ HELDOUT_MAX_DIST = 0.15  #: CLEAR-MOT match distance against the object centres 
 #: an object counts in a frame when its visible surface would give the demo's detector enough points:
 #: min(visible pixels, visible area in cm², i.e. 1 cm voxels) >= this (PipelineConfig.min_detection_points)
 HELDOUT_MIN_POINTS = 30
+#: ... and when it moves: a point of it at least this fast (m/s; slower is static scenery to a
+#: moving-object tracker, whose segmentation calls everything under rgbd_min_speed = 0.04 m/s static)
+HELDOUT_MIN_SPEED = 0.05
 REPORTED = ("confirmed", "coasting")  #: every row that is not tentative is a claim
 HELDOUT_BARS = {"mota": 0.85, "id_switches": 1, "fp_share": 0.02}
 
 
-def counted(visible_pixels: int, visible_area_m2: float) -> bool:
+def counted(visible_pixels: int, visible_area_m2: float, speed: float) -> bool:
     """Whether an object is ground truth in a frame (else it is ignored: neither missed nor matched)."""
-    return min(visible_pixels, visible_area_m2 * 1e4) >= HELDOUT_MIN_POINTS
+    return min(visible_pixels, visible_area_m2 * 1e4) >= HELDOUT_MIN_POINTS and speed >= HELDOUT_MIN_SPEED
 
 
 def score_tracks_rows(rows, truth, statuses=REPORTED, max_dist=HELDOUT_MAX_DIST):
     """CLEAR-MOT of ``tracks.csv`` rows against ``objects.csv`` truth (``_evalscenes.read_objects_csv``).
 
     Every frame of the sequence is scored (a frame without rows misses its objects). Objects that do
-    not count in a frame (hidden, outside the image, too small: :func:`counted`) are ignored there:
+    not count in a frame (hidden, outside the image, too small, static: :func:`counted`) are ignored there:
     a row matched to one (``flowtrack.metrics.remove_ignored``) is dropped. Returns the
     ``clear_mot`` dict plus ``fp_share`` (FP / ground-truth objects), ``fp_frames`` ({frame: [(track
     id, position)]}), ``matches`` (per frame {object: track}) and ``frames``.
@@ -632,8 +635,8 @@ def score_tracks_rows(rows, truth, statuses=REPORTED, max_dist=HELDOUT_MAX_DIST)
     gt, ign = [], []
     for f in frames:
         g, i = {}, {}
-        for k, (c, npx, area) in truth[f].items():
-            (g if counted(npx, area) else i)[k] = c
+        for k, (c, npx, area, speed) in truth[f].items():
+            (g if counted(npx, area, speed) else i)[k] = c
         gt.append(g)
         ign.append(i)
     hyp = {f: {} for f in frames}
@@ -752,9 +755,9 @@ def tracking_gallery(seq_dir: Path, score: dict, truth: dict, intrinsics: str, p
     for ax, f in zip(axes[0], frames):
         ax.imshow(seq.rgb[f])
         H, W = seq.rgb[f].shape[:2]
-        for k, (c, npx, area) in truth[f].items():
+        for k, (c, npx, area, speed) in truth[f].items():
             u, v = uv(c)
-            style = dict(color="lime" if counted(npx, area) else "grey", fontsize=7)
+            style = dict(color="lime" if counted(npx, area, speed) else "grey", fontsize=7)
             ax.plot(u, v, "o", mfc="none", mec=style["color"], ms=9)
             ax.text(u + 4, v - 4, f"obj {k}", **style)
         matched = set(score["matches"].get(f, {}).values())
@@ -855,8 +858,10 @@ def heldout_section(args) -> bool:
         f"{100 * HELDOUT_MAX_DIST:.0f} cm against the object centres of `objects.csv`, counting **every "
         "row whose status is not tentative** (confirmed and coasting: a coasting row is a claim of where "
         "the object is). An object counts in a frame when min(visible pixels, visible area in cm²) ≥ "
-        f"{HELDOUT_MIN_POINTS} (enough 1 cm voxels for the detector's `min_detection_points`); otherwise "
-        "(hidden, outside the image, too small) it is ignored there: a row matched to it is dropped "
+        f"{HELDOUT_MIN_POINTS} (enough 1 cm voxels for the detector's `min_detection_points`) and a point "
+        f"of it moves at least {100 * HELDOUT_MIN_SPEED:.0f} cm/s (slower objects are static scenery to a "
+        "moving-object tracker); otherwise (hidden, outside the image, too small, static) it is ignored "
+        "there: a row matched to it is dropped "
         "(`flowtrack.metrics.remove_ignored`, MOTChallenge's rule), it is neither missed nor matched. "
         "*FP share*: false positives / ground-truth objects. *Confirmed only*: the same, scoring the "
         "confirmed rows alone (the scoring of issue 15). Ablation: `metrics.json[\"tracking_ablation\"]` "

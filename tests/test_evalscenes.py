@@ -162,9 +162,11 @@ def test_a_sequence_round_trips_through_the_tum_reader(tmp_path):
     truth = E.read_objects_csv(tmp_path / "seq" / "objects.csv")
     assert sorted(truth) == [0, 1, 2, 3]
     assert 2 <= len(truth[0]) <= 6
-    for k, (c, npx, area) in truth[3].items():
+    for k, (c, npx, area, speed) in truth[3].items():
         assert np.allclose(c, made["truth"][3][k][0], atol=1e-6)
         assert npx == made["truth"][3][k][1] and (npx > 0) == (area > 0)
+        # the speed bound is at least the centre's speed (finite difference of the centres)
+        assert speed >= np.linalg.norm(truth[3][k][0] - truth[2][k][0]) * 30 * 0.95 - 1e-6
 
 
 def test_sequence_objects_never_move_faster_than_their_class_allows():
