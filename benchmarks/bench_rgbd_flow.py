@@ -82,7 +82,7 @@ from scipy import ndimage  # noqa: E402
 from skimage.registration import optical_flow_tvl1  # noqa: E402
 
 import _evalscenes  # noqa: E402
-from _results import RESULTS, publish  # noqa: E402
+from _results import RESULTS, publish, save_small_png  # noqa: E402
 from flowtrack.camera import PinholeCamera, backproject, scene_flow_from_optical_flow  # noqa: E402
 from flowtrack.datasets import MOTORCYCLE_CALIBRATION  # noqa: E402
 from flowtrack.metrics import worst_case_flow_metrics  # noqa: E402
@@ -701,7 +701,7 @@ def flow_gallery(spec, path, options=None):
     for ax in axes.ravel():
         ax.set_axis_off()
     fig.suptitle(f"Worst test pair: {spec.name}", fontsize=10)
-    fig.savefig(path, dpi=55)
+    save_small_png(fig, path, dpi=60)
     plt.close(fig)
     return res
 
