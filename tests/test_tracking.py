@@ -1212,3 +1212,11 @@ def test_the_initiator_must_start_the_predictors_states():
         MultiObjectTracker(0.1, 1.0, 0.01, predictor=MotionPredictor("turn_rate"))
     trk = MultiObjectTracker(0.1, 1.0, 0.01, motion_model="turn_rate")  # the options match them
     assert trk.step(np.zeros((1, 2))) == [] and trk.tracks[0].x.shape == (5,)
+
+def test_a_frame_without_detections_with_position_covariances_is_a_miss():
+    # the demo passes (0, 3, 3) position covariances for a frame without detections
+    trk = MultiObjectTracker(dt=0.1, q=1.0, r=1e-4, dim=3, velocity_update=True, min_hits=1)
+    trk.step(np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 3)), np.eye(3)[None] * 1e-2,
+             position_covs=np.eye(3)[None] * 1e-4)
+    out = trk.step(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3)), position_covs=np.zeros((0, 3, 3)))
+    assert [(t.id, t.status, t.misses) for t in out] == [(0, "coasting", 1)]
