@@ -239,6 +239,35 @@ def test_turn_rate_predict_is_continuous_at_zero_rate():
         assert float(abs(np.longdouble(fw[0]) - px)) < 1e-14
 
 
+def test_turn_rate_coefficients_are_accurate_at_every_angle_against_50_digit_arithmetic():
+    """sin, 1 - cos, A, B, dA/dw, dB/dw within 1e-13 (relative) of their exact values, on both sides of
+    the series switch and far from it: the closed form T - sin(wT)/w alone is off by ~1e-10 at
+    wT = 1e-3 (cancellation), a two-term series by ~1e-15 at 1e-3 but 1e-6 at 0.3."""
+    import mpmath
+
+    from flowtrack.motion import _SERIES, _coefficients
+
+    mpmath.mp.dps = 50
+
+    def exact(w, T):
+        w, T = mpmath.mpf(w), mpmath.mpf(T)
+        th = w * T
+        s, omc = mpmath.sin(th), 1 - mpmath.cos(th)
+        return [s, omc, omc / w, T - s / w, (T * s * w - omc) / w**2, (s - T * w * mpmath.cos(th)) / w**2]
+
+    thetas = np.r_[np.logspace(-7, 0.6, 120), _SERIES * (1 - 1e-12), _SERIES * (1 + 1e-12), 1e-3, 1.01e-3]
+    worst = 0.0
+    for T in (0.1, 0.8):
+        for th in thetas:
+            for w in (th / T, -th / T):
+                for got, want in zip(_coefficients(np.array([w]), T), exact(w, T)):
+                    worst = max(worst, float(abs((mpmath.mpf(float(got[0])) - want) / want)))
+    assert worst < 1e-13, worst
+    # and at w = 0 exactly: the constant-velocity limit, A = B = dB = 0, dA = T^2 / 2
+    s, omc, A, B, dA, dB = _coefficients(np.zeros(1), 0.5)
+    assert s[0] == omc[0] == A[0] == B[0] == dB[0] == 0.0 and dA[0] == 0.125
+
+
 def test_turn_rate_predicts_a_circle_exactly():
     rho, w, T = 0.13, 1.0, 0.1
     phi = 0.3
