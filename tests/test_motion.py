@@ -136,6 +136,34 @@ def test_velocity_covariance_floor_and_effective_points():
     np.testing.assert_allclose(c - b, 0.05**2 * np.eye(3), atol=1e-15)
 
 
+def test_speed_fraction_models_an_error_shared_by_the_whole_cluster():
+    """A cluster whose flow is off by one common factor (1 + e), e ~ N(0, a^2), along its motion (plus
+    small independent noise): its residuals cannot see e, the speed-fraction term does. Monte Carlo
+    NEES of the fitted velocity against the truth: about 3 (the dof; the residuals here are independent,
+    so n_eff = n) with speed_fraction = a, far above without it."""
+    rng = np.random.default_rng(3)
+    a, u_true = 0.1, np.array([0.2, 0.05, 0.0])
+    X = rng.normal(scale=0.05, size=(300, 3))
+    nees = {0.0: [], a: []}
+    for _ in range(400):
+        flow = (1 + a * rng.normal()) * u_true + 0.003 * rng.normal(size=X.shape)
+        for frac in nees:
+            m = rigid_motion_from_flow(X, flow, 0.1, speed_fraction=frac, min_std=0.0,
+                                       max_effective_points=300)
+            e = m.velocity - u_true
+            nees[frac].append(e @ np.linalg.solve(m.velocity_cov, e))
+    assert 2.5 < np.mean(nees[a]) < 3.5, np.mean(nees[a])
+    assert np.mean(nees[0.0]) > 30
+    # the term itself: a^2 u u^T on top of the residual covariance
+    flow = u_true + 0.003 * rng.normal(size=X.shape)
+    m0 = rigid_motion_from_flow(X, flow, 0.1)
+    m1 = rigid_motion_from_flow(X, flow, 0.1, speed_fraction=0.3)
+    np.testing.assert_allclose(m1.velocity_cov - m0.velocity_cov, 0.09 * np.outer(m0.velocity, m0.velocity),
+                               atol=1e-15)
+    with pytest.raises(ValueError, match="speed_fraction"):
+        rigid_motion_from_flow(X, flow, 0.1, speed_fraction=-0.1)
+
+
 def test_rigid_motion_2d():
     rng = np.random.default_rng(4)
     X = rng.normal(size=(20, 2))

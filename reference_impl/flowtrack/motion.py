@@ -190,7 +190,9 @@ class RigidMotion:
         vectors
         :math:`n_\mathrm{eff} = \min(n, n_\mathrm{max})` (neighbouring flow vectors of a smoothed field
         are correlated, so the :math:`1/n` of independent residuals would be overconfident), plus
-        ``min_std**2 I``.
+        ``min_std**2 I``, plus the error shared by the whole cluster
+        :math:`\alpha^2\, u u^\top` (``speed_fraction`` :math:`\alpha`, see
+        :func:`rigid_motion_from_flow`).
     residual_rms : float
         Root mean square of the flow residuals :math:`\|e_i\|` (m/s).
     n_points : int
@@ -220,7 +222,7 @@ class RigidMotion:
 
 
 def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std=0.002,
-                           rotation_spread=False) -> RigidMotion:
+                           rotation_spread=False, speed_fraction=0.0) -> RigidMotion:
     r"""Fit the rigid motion of one cluster to its flow: Kabsch on :math:`X` and :math:`X + v\,\Delta t`.
 
     Parameters
@@ -241,6 +243,16 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
         (:math:`\Omega = [\omega]_\times`, in 2-D the 90° rotation times :math:`\omega`): for a
         track that follows the centroid of the *visible* surface, which is not a fixed body point,
         so a spinning object's flow at the centroid is not its velocity.
+    speed_fraction : float, >= 0
+        :math:`\alpha`: add :math:`\alpha^2\, u u^\top` (:math:`u` the fitted velocity), an error of
+        standard deviation :math:`\alpha\lVert u\rVert` along the motion *shared by every point of the
+        cluster*. The residuals measure how the flow scatters about one rigid motion; they cannot
+        see an error common to all points, and the flow of geometric correspondences (nearest
+        neighbours, ICP, graph flow) has one: a surface sliding along itself looks still, so such a
+        flow sees the motion along the surfaces' normals and loses part of the motion along the
+        surfaces, for the whole cluster alike. The loss grows with the motion, hence a fraction of
+        the speed. 0 (the default) leaves it out: the covariance then describes the flow's noise
+        only, and is overconfident for such flows (lesson 6 §5b measures it).
 
     Returns
     -------
@@ -268,6 +280,7 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
     if n_max < 1:
         raise ValueError(f"max_effective_points must be >= 1, got {max_effective_points}")
     min_std = nonnegative(min_std, "min_std")
+    speed_fraction = nonnegative(speed_fraction, "speed_fraction")
     R, t = kabsch(X, X + V * dt)
     c = X.mean(axis=0)
     u = ((R - np.eye(D)) @ c + t) / dt
@@ -275,7 +288,7 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
     n = len(X)
     n_par = 6 if D == 3 else 3
     Se = E.T @ E / max(n - n_par / D, 1)  # the fit's n_par parameters take n_par / D dof per axis
-    cov = Se / min(n, n_max) + min_std**2 * np.eye(D)
+    cov = Se / min(n, n_max) + min_std**2 * np.eye(D) + speed_fraction**2 * np.outer(u, u)
     if D == 3:
         w = _rotation_vector(R) / dt
     else:
@@ -304,7 +317,9 @@ def detection_velocity_covariances(points, clusters, flow, detections, dt, **opt
     detections : array_like, shape (K, D)
     dt : float, > 0
     **options
-        Passed to :func:`rigid_motion_from_flow` (``max_effective_points``, ``min_std``).
+        Passed to :func:`rigid_motion_from_flow` (``max_effective_points``, ``min_std``,
+        ``speed_fraction``: without it the covariance describes the flow's scatter about the rigid
+        motion only, not the error the whole cluster shares).
 
     Returns
     -------

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from flowtrack.motion import detection_velocity_covariances
 from flowtrack.pipeline import (
     METHODS,
     RGBD_METHOD,
@@ -144,9 +143,8 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     R (K, 3, 3) or None)``.
 
     ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
-    of each piece's visible-surface centroid and ``C`` its covariance, the cluster's flow-residual
-    covariance (:func:`flowtrack.motion.detection_velocity_covariances`, ``min_std =
-    velocity_min_std``) widened by the visible-extent change
+    of each piece's visible-surface centroid and ``C`` its covariance, ``visible_velocity_std**2 I``
+    widened by the visible-extent change
     (:func:`flowtrack.pipeline.visible_centroid_velocities`, ``radius = centroid_radius``, at least the
     voxel size of a real cloud; ``inflation = extent_change_inflation``). ``R`` is each detection's
     position covariance, ``track_r`` widened toward a nearer surface that cuts the piece
@@ -175,14 +173,9 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
                               min_speed=cfg.rgbd_min_speed, images=colour,
                               occluders=(depth_t, inp.camera), rigid_merge=True)
     Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
-    # each piece's covariance is that of its (main) cluster: a point of it stands for the piece (a piece
-    # merged across an occluder has its centroid in the gap, maybe nearest to the occluder's points)
-    rep = []
-    for p in pieces:
-        labs, counts = np.unique(clusters[p], return_counts=True)
-        rep.append(X[p[np.flatnonzero(clusters[p] == labs[np.argmax(counts)])[0]]])
-    rep = np.array(rep).reshape(-1, 3)
-    C = detection_velocity_covariances(X, clusters, flow, rep, dt, min_std=cfg.velocity_min_std)
+    # the covariance of the visible centroid's velocity itself (not of the cluster's mean flow, whose
+    # residuals describe another estimate): see PipelineConfig.visible_velocity_std
+    C = np.tile(cfg.visible_velocity_std**2 * np.eye(3), (len(pieces), 1, 1))
     radius = cfg.centroid_radius if inp.scene is not None else max(cfg.centroid_radius, cfg.voxel)
     U, C = visible_centroid_velocities(X, pieces, flow, depth_t, depth_t1, inp.camera, dt, radius=radius,
                                        velocity_covs=C, inflation=cfg.extent_change_inflation)
@@ -217,8 +210,8 @@ def run_demo(
 
     The scene flow that clustering and the tracker use is the dense variational RGB-D flow of each
     frame pair (:func:`flowtrack.pipeline.rgbd_cloud_flow`), for the synthetic scene and for real
-    input alike. Each detection carries the velocity of its visible-surface centroid and a velocity
-    covariance from the cluster's flow residuals widened by the visible-extent change
+    input alike. Each detection carries the velocity of its visible-surface centroid and that
+    velocity's covariance, widened by the visible-extent change
     (:func:`detection_measurements`); the tracker updates with position and velocity
     (``velocity_update=True``, constant-velocity model).
 
