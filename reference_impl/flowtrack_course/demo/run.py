@@ -138,13 +138,14 @@ def assign_tracks(tracks: dict[int, np.ndarray], truth: dict[int, np.ndarray], g
 
 
 def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig,
-                           partner: int | None = None):
+                           partner: int | None = None, *, yaw_axis=None):
     """Detections of frame ``t`` with their velocity measurements: ``(Z (K, 3), U (K, 3), C (K, 3, 3),
     R (K, 3, 3) or None)``.
 
     ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
-    of each piece's visible-surface centroid and ``C`` its covariance, ``visible_velocity_std**2 I``
-    widened by the visible-extent change
+    of each piece's visible-surface centroid and ``C`` its covariance,
+    ``(visible_velocity_std**2 + visible_velocity_speed_fraction**2 |v|**2 100 / n) I`` for a piece of
+    n points with mean flow v, widened by the visible-extent change
     (:func:`flowtrack.pipeline.visible_centroid_velocities`, ``radius = centroid_radius``, at least the
     voxel size of a real cloud; ``inflation = extent_change_inflation``). ``R`` is each detection's
     position covariance, ``track_r`` widened toward a nearer surface that cuts the piece
@@ -157,6 +158,11 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     over the time between the two frames (``DemoInput.interval``: their timestamps for real
     input). For a backward pair (``partner < t``) the returned ``U`` is negated, so it is always the
     velocity at frame ``t`` forward in time.
+
+    With ``yaw_axis`` (a unit 3-vector, e.g. the table's normal in the camera frame) a fifth array
+    ``W (K,)`` follows: each piece's yaw rate about that axis, the angular velocity of the rigid motion
+    fitted to its flow (Kabsch, :func:`flowtrack.motion.rigid_motion_from_flow`), for
+    ``MultiObjectTracker.step(..., yaw_rates=)``.
     """
     s = t + 1 if partner is None else int(partner)
     if s == t:
@@ -175,7 +181,9 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
     # the covariance of the visible centroid's velocity itself (not of the cluster's mean flow, whose
     # residuals describe another estimate): see PipelineConfig.visible_velocity_std
-    C = np.tile(cfg.visible_velocity_std**2 * np.eye(3), (len(pieces), 1, 1))
+    var = [cfg.visible_velocity_std**2 + cfg.visible_velocity_speed_fraction**2
+           * float(np.sum(flow[p].mean(axis=0) ** 2)) * 100.0 / len(p) for p in pieces]
+    C = np.array([v * np.eye(3) for v in var]).reshape(-1, 3, 3)
     radius = cfg.centroid_radius if inp.scene is not None else max(cfg.centroid_radius, cfg.voxel)
     U, C = visible_centroid_velocities(X, pieces, flow, depth_t, depth_t1, inp.camera, dt, radius=radius,
                                        velocity_covs=C, inflation=cfg.extent_change_inflation)
@@ -183,7 +191,13 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     if cfg.occlusion_position_scale is not None:
         Rz = occlusion_position_covariances(X, pieces, depth_t, inp.camera, cfg.track_r,
                                             scale=cfg.occlusion_position_scale, margin=cfg.occlusion_margin)
-    return Z, (U if s > t else -U), C, Rz
+    sign = 1.0 if s > t else -1.0
+    if yaw_axis is None:
+        return Z, sign * U, C, Rz
+    from flowtrack.motion import rigid_motion_from_flow
+
+    W = np.array([sign * rigid_motion_from_flow(X[p], flow[p], dt).yaw_rate(yaw_axis) for p in pieces])
+    return Z, sign * U, C, Rz, W
 
 
 @open3d_threads(1)
