@@ -51,14 +51,15 @@ a revealed one next to the object's warped surface joins it. Then
     u = \frac{\operatorname{mean}\{B_{t+1}(p) : \ell_{t+1}(p) = k\}
             - \operatorname{mean}\{B_t(p) : \ell_t(p) = k\}}{\Delta t},
     \qquad
-    C_u = \Big(\sigma_u^2 + f^2\lVert\bar v\rVert^2\,\frac{n_0}{n}\Big) I
+    C_u = C_e + \Big(\sigma_u^2 + f^2\lVert\bar v\rVert^2\,\frac{n_0}{n}\Big) I
           + \kappa\,(u - \bar v)(u - \bar v)^\top ,
 
-with :math:`B_t(p)` the back-projection of pixel p. The covariance describes :math:`u` itself, not
-the mean flow: the first term (the demo's ``visible_velocity_std`` :math:`\sigma_u` and
-``visible_velocity_speed_fraction`` f, :math:`n_0` = 100 points, n the piece's) is the error a
-difference of two labelled-pixel centroids shares over the whole piece, which the flow's residuals
-cannot see: the labelling of its outline, and surface revealed or lost at the outline as it sweeps
+with :math:`B_t(p)` the back-projection of pixel p. The covariance describes :math:`u` itself:
+:math:`C_e` is the flow's scatter about its cluster's rigid motion
+(:func:`flowtrack.motion.detection_velocity_covariances`), the noise the labels carried by the flow
+inherit; the second term (the demo's ``visible_velocity_std`` :math:`\sigma_u` and
+``visible_velocity_speed_fraction`` f, :math:`n_0` = 100 points, n the piece's) is the error the
+whole piece shares, which no residual can see: surface revealed or lost at the outline as it sweeps
 :math:`\lVert\bar v\rVert\Delta t` per frame that no warped point marks, larger for a small or
 ragged piece (much outline for its area); the gap
 :math:`u - \bar v` between the visible centroid's and the material's velocity is the *measured*

@@ -463,8 +463,7 @@ def visible_centroid_velocities(points, pieces, flow, depth_t, depth_t1, camera,
         Farthest a pixel may be from its nearest (warped) cloud point and still take its label (m).
     velocity_covs : array_like, shape (K, 3, 3), optional
         Covariance :math:`C_k` of each detection's visible-centroid velocity before the visible-extent
-        change (the demo: ``visible_velocity_std**2 I``, see :mod:`flowtrack.pipeline`); a NaN row
-        stays NaN.
+        change (the demo's is described in :mod:`flowtrack.pipeline`); a NaN row stays NaN.
     inflation : float, >= 0
         :math:`\kappa`.
     min_pixels : int, >= 1

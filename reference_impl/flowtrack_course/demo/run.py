@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from flowtrack.motion import detection_velocity_covariances
 from flowtrack.pipeline import (
     METHODS,
     RGBD_METHOD,
@@ -143,9 +144,11 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     R (K, 3, 3) or None)``.
 
     ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
-    of each piece's visible-surface centroid and ``C`` its covariance,
-    ``(visible_velocity_std**2 + visible_velocity_speed_fraction**2 |v|**2 100 / n) I`` for a piece of
-    n points with mean flow v, widened by the visible-extent change
+    of each piece's visible-surface centroid and ``C`` its covariance: the flow's scatter about its
+    cluster's rigid motion (:func:`flowtrack.motion.detection_velocity_covariances`, ``min_std =
+    visible_velocity_std``) plus ``visible_velocity_speed_fraction**2 |v|**2 100 / n I`` for a piece of
+    n points with mean flow v (see :class:`flowtrack.pipeline.PipelineConfig`), widened by the
+    visible-extent change
     (:func:`flowtrack.pipeline.visible_centroid_velocities`, ``radius = centroid_radius``, at least the
     voxel size of a real cloud; ``inflation = extent_change_inflation``). ``R`` is each detection's
     position covariance, ``track_r`` widened toward a nearer surface that cuts the piece
@@ -179,11 +182,19 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
                               min_speed=cfg.rgbd_min_speed, images=colour,
                               occluders=(depth_t, inp.camera), rigid_merge=True)
     Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
-    # the covariance of the visible centroid's velocity itself (not of the cluster's mean flow, whose
-    # residuals describe another estimate): see PipelineConfig.visible_velocity_std
-    var = [cfg.visible_velocity_std**2 + cfg.visible_velocity_speed_fraction**2
-           * float(np.sum(flow[p].mean(axis=0) ** 2)) * 100.0 / len(p) for p in pieces]
-    C = np.array([v * np.eye(3) for v in var]).reshape(-1, 3, 3)
+    # the covariance of the visible centroid's velocity itself (see PipelineConfig.visible_velocity_std):
+    # the flow's scatter about its cluster's rigid motion, which the warped labels inherit (a point of
+    # the piece's main cluster stands for the piece: a piece merged across an occluder has its centroid
+    # in the gap, maybe nearest to the occluder's points), plus the error the whole piece shares
+    rep = []
+    for p in pieces:
+        labs, counts = np.unique(clusters[p], return_counts=True)
+        rep.append(X[p[np.flatnonzero(clusters[p] == labs[np.argmax(counts)])[0]]])
+    rep = np.array(rep).reshape(-1, 3)
+    C = detection_velocity_covariances(X, clusters, flow, rep, dt, min_std=cfg.visible_velocity_std)
+    for k, p in enumerate(pieces):
+        C[k] += (cfg.visible_velocity_speed_fraction**2 * float(np.sum(flow[p].mean(axis=0) ** 2))
+                 * 100.0 / len(p)) * np.eye(3)
     radius = cfg.centroid_radius if inp.scene is not None else max(cfg.centroid_radius, cfg.voxel)
     U, C = visible_centroid_velocities(X, pieces, flow, depth_t, depth_t1, inp.camera, dt, radius=radius,
                                        velocity_covs=C, inflation=cfg.extent_change_inflation)
