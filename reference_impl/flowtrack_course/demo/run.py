@@ -146,7 +146,7 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
     of each piece's visible-surface centroid and ``C`` its covariance: the flow's scatter about its
     cluster's rigid motion (:func:`flowtrack.motion.detection_velocity_covariances`, ``min_std =
-    visible_velocity_std``) plus ``visible_velocity_speed_fraction**2 |v|**2 100 / n I`` for a piece of
+    visible_velocity_std``) plus ``visible_velocity_speed_fraction**2 (v . v) 100 / n I`` for a piece of
     n points with mean flow v (see :class:`flowtrack.pipeline.PipelineConfig`), widened by the
     visible-extent change
     (:func:`flowtrack.pipeline.visible_centroid_velocities`, ``radius = centroid_radius``, at least the
