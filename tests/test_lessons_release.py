@@ -1,7 +1,7 @@
 """The student bundle's lessons give away none of the syllabus' Problems 1–5.
 
 ``flowtrack release`` replaces every lesson cell tagged ``worked-answer`` by a note
-(:func:`flowtrack_course.grading.release.student_lesson`); anything untagged reaches the student. Each
+(:func:`flowtrack_course.grading.assign.release.student_lesson`); anything untagged reaches the student. Each
 problem's answer formulas, written from its worked solution in ``solutions/problem*.md``, are searched
 for in the released text of every lesson (Markdown and code cells), after the notation is normalised
 (spaces and LaTeX spacing removed, ``\\frac{a}{b}`` and ``\\tfrac{a}{b}`` read as ``a/b``), so that
@@ -59,7 +59,7 @@ def normalise(text: str) -> str:
 
 def released_lessons() -> dict[str, str]:
     """Each lesson's text as ``flowtrack release`` writes it: every cell's source, in order."""
-    from flowtrack_course.grading.release import student_lesson
+    from flowtrack_course.grading.assign.release import student_lesson
     from flowtrack_course.notebooks import read_notebook, strip_outputs
 
     out = {}
