@@ -151,11 +151,19 @@ _DEFAULTS = {
     "blur": 0.8,
     "use_depth": True,
     "use_color": True,
+    "init": "zero",
+    "match_weight": 0.0,
+    "sigma_m": 0.005,
+    "truncate_depth": False,
+    "fill_depth_scale": 0.005,
+    "fill_grey_scale": 1.0,
+    "hidden_weight": 0.1,
     "backend": "auto",
     "return_info": False,
 }
 
 BACKENDS = ("auto", "numba", "numpy")
+INITS = ("zero", "matches")
 _KERNELS: list = []
 
 
@@ -346,18 +354,21 @@ class _Linearised:
     """The energy of one warp with the data terms linearised around ``s0``.
 
     ``a_i, a_d`` (H, W, 3), ``r_i, r_d`` (H, W) residuals at ``s0``, ``m_i, m_d`` (H, W) 0/1 data
-    masks, ``wv (H-1, W), wh (H, W-1)`` geometric edge weights, ``lam``, the scales and the penalty:
+    masks, ``wv (H-1, W), wh (H, W-1)`` geometric edge weights, ``lam``, the scales and the penalty;
+    optionally a match term: targets ``m_t`` (H, W, 3) with weights ``c_m`` (H, W) >= 0:
 
     E(s) = sum m_i rho((r_i + a_i.(s - s0)) / sigma_i) + m_d rho((r_d + a_d.(s - s0)) / sigma_d)
-           + lam sum_edges w rho(|s_p - s_q| / sigma_s).
+           + sum c_m rho(|s - m_t| / sigma_m) + lam sum_edges w rho(|s_p - s_q| / sigma_s).
     """
 
-    def __init__(self, s0, a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, lam, sigma_i, sigma_d, sigma_s, penalty):
+    def __init__(self, s0, a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, lam, sigma_i, sigma_d, sigma_s, penalty,
+                 m_t=None, c_m=None, sigma_m=1.0):
         self.s0, self.a_i, self.r_i, self.m_i = s0, a_i, r_i, m_i
         self.a_d, self.r_d, self.m_d = a_d, r_d, m_d
         self.wv, self.wh = wv, wh
         self.lam, self.sigma_i, self.sigma_d, self.sigma_s = lam, sigma_i, sigma_d, sigma_s
         self.penalty = penalty
+        self.m_t, self.c_m, self.sigma_m = m_t, c_m, sigma_m
 
     def residuals(self, s):
         ds = s - self.s0
@@ -368,6 +379,8 @@ class _Linearised:
         pen = self.penalty
         data = np.sum(self.m_i * _rho((ri / self.sigma_i) ** 2, pen))
         data += np.sum(self.m_d * _rho((rd / self.sigma_d) ** 2, pen))
+        if self.m_t is not None:
+            data += np.sum(self.c_m * _rho(np.sum((s - self.m_t) ** 2, axis=-1) / self.sigma_m**2, pen))
         gv = np.sum((s[1:] - s[:-1]) ** 2, axis=-1) / self.sigma_s**2
         gh = np.sum((s[:, 1:] - s[:, :-1]) ** 2, axis=-1) / self.sigma_s**2
         smooth = np.sum(self.wv * _rho(gv, pen)) + np.sum(self.wh * _rho(gh, pen))
@@ -385,6 +398,13 @@ class _Linearised:
         Wh = self.lam * self.wh * _rho_weight(gh, pen) / self.sigma_s**2
         return c_i, c_d, Wv, Wh
 
+    def match_weights(self, s):
+        """IRLS weights of the match term at ``s`` (H, W), or None without one."""
+        if self.m_t is None:
+            return None
+        x2 = np.sum((s - self.m_t) ** 2, axis=-1) / self.sigma_m**2
+        return self.c_m * _rho_weight(x2, self.penalty) / self.sigma_m**2
+
     def system(self, s):
         """The quadratic majoriser at ``s``: ``(N, rhs, Wv, Wh)`` with 0.5 grad = A s - rhs."""
         c_i, c_d, Wv, Wh = self.weights(s)
@@ -394,6 +414,11 @@ class _Linearised:
         # residual r + a.(s - s0) = a.s + (r - a.s0): rhs = N s0 - (c_i r_i a_i + c_d r_d a_d)
         rhs = np.einsum("...ij,...j->...i", N, self.s0)
         rhs -= (c_i * self.r_i)[..., None] * a_i + (c_d * self.r_d)[..., None] * a_d
+        c_m = self.match_weights(s)
+        if c_m is not None:
+            for k in range(3):
+                N[..., k, k] += c_m
+            rhs += c_m[..., None] * self.m_t
         return N, rhs, Wv, Wh
 
     def gradient(self, s):
@@ -531,6 +556,9 @@ def _options(options):
     for k in ("sigma_i", "sigma_d", "sigma_s", "edge_scale", "occlusion"):
         o[k] = positive(o[k], k)
     o["blur"] = nonnegative(o["blur"], "blur")
+    o["match_weight"] = nonnegative(o["match_weight"], "match_weight")
+    o["sigma_m"] = positive(o["sigma_m"], "sigma_m")
+    o["hidden_weight"] = nonnegative(o["hidden_weight"], "hidden_weight")
     if o["penalty"] not in PENALTIES:
         raise ValueError(f"penalty must be one of {PENALTIES}, got {o['penalty']!r}")
     if o["levels"] is not None:
@@ -538,13 +566,20 @@ def _options(options):
     o["min_size"] = positive_int(o["min_size"], "min_size", minimum=2)
     for k in ("warps", "irls", "cg_iterations"):
         o[k] = positive_int(o[k], k)
-    for k in ("use_depth", "use_color", "return_info"):
+    for k in ("use_depth", "use_color", "return_info", "truncate_depth"):
         if not isinstance(o[k], (bool, np.bool_)):
             raise TypeError(f"{k} must be a bool, got {type(o[k]).__name__}")
     if o["backend"] not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {o['backend']!r}")
     if o["backend"] == "numba" and _kernels() is None:
         raise ValueError("backend='numba' needs numba, which is not importable")
+    if isinstance(o["init"], str):
+        if o["init"] not in INITS:
+            raise ValueError(f"init must be one of {INITS} or an (H, W, 3) velocity array, got {o['init']!r}")
+    else:
+        init = np.asarray(o["init"])
+        if init.ndim != 3 or init.shape[2] != 3 or not np.issubdtype(init.dtype, np.number):
+            raise ValueError(f"init must be one of {INITS} or an (H, W, 3) velocity array, got {init.shape}")
     if not (o["use_depth"] or o["use_color"]):
         raise ValueError("use_depth and use_color cannot both be False (no data term)")
     return o
@@ -584,6 +619,98 @@ def _upsample(s, shape):
     return out
 
 
+def _initial_match(init, shape, dt):
+    """An explicit initial velocity field as a match: (H, W, 3) velocities, NaN where unknown."""
+    v = np.asarray(init, dtype=np.float64)
+    ok = np.isfinite(v).all(axis=-1)
+    return {"m": np.where(ok[..., None], v * dt, 0.0), "conf": ok.astype(np.float64),
+            "hidden": np.zeros(shape, bool)}
+
+
+def _match_pyramid(target, weight, hidden, n):
+    """Match targets, weights and hidden masks on every level (weighted 2×2 means; hidden: majority)."""
+    out = [(target, weight, hidden)]
+    h = hidden.astype(np.float64)
+    for _ in range(1, n):
+        ws = _down(weight)
+        target = np.where(ws[..., None] > 0,
+                          _down(weight[..., None] * target) / np.maximum(ws, 1e-300)[..., None], 0.0)
+        weight = ws / 4.0
+        h = _down(h) / 4.0
+        out.append((target, weight, h > 0.5))
+    return out
+
+
+def _geodesic_steps(D, I, tau_z, tau_i, hole_step):
+    """Lengths of the horizontal and vertical pixel steps: 1 + |dZ| / tau_z + |dI| / tau_i."""
+    valid = D > 0
+    out = []
+    for a, b, va, vb, ia, ib in ((D[:, 1:], D[:, :-1], valid[:, 1:], valid[:, :-1], I[:, 1:], I[:, :-1]),
+                                 (D[1:], D[:-1], valid[1:], valid[:-1], I[1:], I[:-1])):
+        step = 1.0 + np.abs(ia - ib) / tau_i + np.where(va & vb, np.abs(a - b) / tau_z, hole_step)
+        out.append(np.ascontiguousarray(step))
+    return out
+
+
+def _depth_jumps(D, tau):
+    """Pixels with a 4-neighbour more than ``tau`` (m) nearer or farther, or without depth."""
+    valid = D > 0
+    out = ~valid
+    for ax in (0, 1):
+        j = np.abs(np.diff(D, axis=ax)) > tau
+        j &= np.delete(valid, 0, axis=ax) & np.delete(valid, -1, axis=ax)
+        if ax == 0:
+            out[1:] |= j
+            out[:-1] |= j
+        else:
+            out[:, 1:] |= j
+            out[:, :-1] |= j
+    return out
+
+
+def _geodesic_fill(m, known, D, I, o):
+    """``m`` (H, W, C) with every pixel not ``known`` set to its geodesically nearest known pixel's.
+
+    The geodesic length of a path counts depth and brightness jumps (:func:`_geodesic_steps`), so a
+    hidden or unmatched pixel takes the value of the nearest matched pixel *on its own surface*
+    (the edge-aware nearest-neighbour interpolation of EpicFlow, with depth edges).
+    """
+    # pixels on a depth edge (silhouettes, flying pixels between two surfaces) are no source: their
+    # depth is close to both sides' and their match often belongs to the other one
+    source = known & ~ndimage.binary_dilation(_depth_jumps(D, o["occlusion"]), iterations=1)
+    if source.any():
+        known = source
+    if known.all() or not known.any():
+        return m.copy()
+    ch, cv = _geodesic_steps(D, I, o["fill_depth_scale"], o["fill_grey_scale"], 100.0)
+    K = None if o["backend"] == "numpy" else _kernels()
+    if K is not None:
+        src = K.geodesic_nearest(ch, cv, known, 2)
+    else:
+        src = _geodesic_nearest_numpy(ch, cv, known, 2)
+    flat = m.reshape(-1, m.shape[-1])
+    return flat[src].reshape(m.shape)
+
+
+def _geodesic_nearest_numpy(cost_h, cost_v, known, passes):
+    """:func:`flowtrack._rgbd_kernels.geodesic_nearest` by the same sweeps, vectorised across lines."""
+    H, W = known.shape
+    dist = np.where(known, 0.0, np.inf)
+    src = np.where(known, np.arange(H * W).reshape(H, W), -1)
+    for _ in range(passes):
+        for j, jp in [(j, j - 1) for j in range(1, W)] + [(j, j + 1) for j in range(W - 2, -1, -1)]:
+            c = dist[:, jp] + cost_h[:, min(j, jp)]
+            better = c < dist[:, j]
+            dist[:, j] = np.where(better, c, dist[:, j])
+            src[:, j] = np.where(better, src[:, jp], src[:, j])
+        for i, ip in [(i, i - 1) for i in range(1, H)] + [(i, i + 1) for i in range(H - 2, -1, -1)]:
+            c = dist[ip] + cost_v[min(i, ip)]
+            better = c < dist[i]
+            dist[i] = np.where(better, c, dist[i])
+            src[i] = np.where(better, src[ip], src[i])
+    return src
+
+
 def _edge_weights(X, valid, intr, sigma_d, edge_scale):
     """w_pq = 1 / (1 + |X_p - X_q|^2 / d_pq^2); a small constant where an end has no depth."""
     f = 0.5 * (intr[0] + intr[1])
@@ -598,8 +725,11 @@ def _edge_weights(X, valid, intr, sigma_d, edge_scale):
     return out
 
 
-def _level(I0, D0, I1, D1, intr, s, o):
+def _level(I0, D0, I1, D1, intr, s, o, match=None):
     H, W = I0.shape
+    m_t, c_m, hidden = (None, None, None) if match is None else match
+    if c_m is not None and not c_m.any():
+        m_t = c_m = None
     K = None if o["backend"] == "numpy" else _kernels()
     fx, fy, cx, cy = intr
     valid0 = D0 > 0
@@ -637,6 +767,13 @@ def _level(I0, D0, I1, D1, intr, s, o):
         occluded = ok_d & (Dw < Zw - o["occlusion"])
         m_i = (inside & ~occluded) * use_i
         m_d = (ok_d & ~occluded) * use_d
+        if hidden is not None:
+            m_i = m_i * ~hidden
+            m_d = m_d * ~hidden
+        if o["truncate_depth"]:
+            # a surface clearly behind the moved point: the warp is wrong there or the point is on a
+            # silhouette; the depth term would drag it onto the background
+            m_d = m_d * (Dw <= Zw + o["occlusion"])
         gx = 0.5 * (Ixw + I0x)
         gy = 0.5 * (Iyw + I0y)
         Xj = np.concatenate([Xw[..., :2], Zw[..., None]], axis=-1)
@@ -646,7 +783,8 @@ def _level(I0, D0, I1, D1, intr, s, o):
         r_i = np.where(inside, Iw - I0, 0.0)
         r_d = np.where(ok_d, Dw - Zw, 0.0)
         prob = _Linearised(s.copy(), a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, o["lam"],
-                           o["sigma_i"], o["sigma_d"], o["sigma_s"], o["penalty"])
+                           o["sigma_i"], o["sigma_d"], o["sigma_s"], o["penalty"],
+                           m_t=m_t, c_m=c_m, sigma_m=o["sigma_m"])
         for _ in range(o["irls"]):
             if K is None:
                 N, rhs, Wv, Wh = prob.system(s)
@@ -656,8 +794,44 @@ def _level(I0, D0, I1, D1, intr, s, o):
                 M = np.empty((H, W, 6))
                 rhs = np.empty((H, W, 3))
                 K.assemble(a_i, a_d, c_i, c_d, r_i, r_d, prob.s0, Wv, Wh, M, rhs)
+                w_m = prob.match_weights(s)
+                if w_m is not None:
+                    M[..., 0] += w_m
+                    M[..., 3] += w_m
+                    M[..., 5] += w_m
+                    rhs += w_m[..., None] * m_t
                 K.pcg(M, rhs, Wv, Wh, s, o["cg_iterations"])
     return s, prob
+
+
+def _estimate(I0, D0, I1, D1, cam, o, match):
+    """Coarse to fine from zero, or from a match: ``{"m": (H, W, 3) displacements (m), "conf": (H, W)
+    confidence in [0, 1] (0: no match), "hidden": (H, W) bool (the point is hidden at t+1: no data
+    term, the displacement of the nearest matched pixel of its surface)}``; returns (s, problem, levels)."""
+    H, W = I0.shape
+    n = _n_levels(H, W, o["min_size"], o["levels"])
+    pyr = _pyramid(I0, D0, I1, D1, cam, n)
+    mpyr = [None] * n
+    s = None
+    if match is not None:
+        known = (match["conf"] > 0) & ~match["hidden"]
+        fill = _geodesic_fill(match["m"], known, D0, I0, o)
+        target = np.where(known[..., None], match["m"], fill)
+        weight = o["match_weight"] * np.where(known, match["conf"], 0.0) + o["hidden_weight"] * match["hidden"]
+        mpyr = _match_pyramid(target, weight, match["hidden"], n)
+        s = fill
+        for _ in range(n - 1):
+            s = _down(s) / 4.0
+    prob = None
+    for lev in range(n - 1, -1, -1):
+        Il0, Dl0, Il1, Dl1, intr = pyr[lev]
+        h, w = Il0.shape
+        if s is None:
+            s = np.zeros((h, w, 3))
+        elif s.shape[:2] != (h, w):
+            s = _upsample(s, (h, w))
+        s, prob = _level(Il0, Dl0, Il1, Dl1, intr, s, o, mpyr[lev])
+    return s, prob, n
 
 
 def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
@@ -725,6 +899,8 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
         raise ValueError(f"cam is for {cam.height}×{cam.width} images, the images are {shape[0]}×{shape[1]}")
     dt = positive(dt, "dt")
     o = _options(options)
+    if not isinstance(o["init"], str) and np.shape(o["init"])[:2] != shape:
+        raise ValueError(f"init must have shape {(*shape, 3)} (the image's), got {np.shape(o['init'])}")
     I0, I1 = grey_image(I0, "rgb_t"), grey_image(I1, "rgb_t1")
     if o["blur"] > 0:
         I0 = ndimage.gaussian_filter(I0, o["blur"], mode="nearest")
@@ -732,13 +908,10 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     H, W = shape
     n = _n_levels(H, W, o["min_size"], o["levels"])
     pyr = _pyramid(I0, D0, I1, D1, cam, n)
-    s = None
-    prob = None
-    for lev in range(n - 1, -1, -1):
-        Il0, Dl0, Il1, Dl1, intr = pyr[lev]
-        h, w = Il0.shape
-        s = np.zeros((h, w, 3)) if s is None else _upsample(s, (h, w))
-        s, prob = _level(Il0, Dl0, Il1, Dl1, intr, s, o)
+    match = None
+    if not isinstance(o["init"], str):
+        match = _initial_match(o["init"], shape, dt)
+    s, prob, n = _estimate(I0, D0, I1, D1, cam, o, match)
     v = s / dt
     v[~(D0 > 0)] = np.nan
     if o["return_info"]:
