@@ -193,7 +193,8 @@ def pcg(M, rhs, Wv, Wh, s, n_iter):
 
 @_jit
 def geodesic_nearest(cost_h, cost_v, known, passes):
-    """Index (row * W + col) of the geodesically nearest known pixel of every pixel (-1: none).
+    """Index (row * W + col) of the geodesically nearest known pixel of every pixel (-1: none), and the
+    geodesic distance to it (inf: none).
 
     ``cost_h (H, W-1)``, ``cost_v (H-1, W)``: the length of each horizontal / vertical step (> 0).
     Each pass sweeps every row left to right and back, then every column down and up (the numpy
@@ -230,4 +231,4 @@ def geodesic_nearest(cost_h, cost_v, known, passes):
                 if c < dist[i, j]:
                     dist[i, j] = c
                     src[i, j] = src[i + 1, j]
-    return src
+    return src, dist

@@ -119,6 +119,7 @@ import numpy as np
 from scipy import ndimage
 
 from ._validation import nonnegative, positive, positive_int
+from ._rgbd_match import geodesic_fill, match_field
 from .camera import PinholeCamera, check_camera
 
 __all__ = [
@@ -139,6 +140,7 @@ _DEFAULTS = {
     "lam": 0.05,
     "sigma_i": 0.02,
     "sigma_d": 0.004,
+    "sigma_d_z2": 0.0,
     "sigma_s": 0.001,
     "edge_scale": 3.0,
     "occlusion": 0.02,
@@ -153,11 +155,19 @@ _DEFAULTS = {
     "use_color": True,
     "init": "zero",
     "match_weight": 0.0,
-    "sigma_m": 0.005,
+    "sigma_m": 1.0,
     "truncate_depth": False,
     "fill_depth_scale": 0.005,
     "fill_grey_scale": 1.0,
     "hidden_weight": 0.1,
+    "fill_reach": 50.0,
+    "match_window": 7,
+    "match_depth_weight": 0.05,
+    "match_depth_trunc": 0.1,
+    "search_radius": 28,
+    "match_cost": 0.03,
+    "match_max_dz": 0.1,
+    "match_texture": 5e-5,
     "backend": "auto",
     "return_info": False,
 }
@@ -380,7 +390,7 @@ class _Linearised:
         data = np.sum(self.m_i * _rho((ri / self.sigma_i) ** 2, pen))
         data += np.sum(self.m_d * _rho((rd / self.sigma_d) ** 2, pen))
         if self.m_t is not None:
-            data += np.sum(self.c_m * _rho(np.sum((s - self.m_t) ** 2, axis=-1) / self.sigma_m**2, pen))
+            data += np.sum(self.c_m * _rho(np.sum(((s - self.m_t) / self.sigma_m) ** 2, axis=-1), pen))
         gv = np.sum((s[1:] - s[:-1]) ** 2, axis=-1) / self.sigma_s**2
         gh = np.sum((s[:, 1:] - s[:, :-1]) ** 2, axis=-1) / self.sigma_s**2
         smooth = np.sum(self.wv * _rho(gv, pen)) + np.sum(self.wh * _rho(gh, pen))
@@ -399,11 +409,11 @@ class _Linearised:
         return c_i, c_d, Wv, Wh
 
     def match_weights(self, s):
-        """IRLS weights of the match term at ``s`` (H, W), or None without one."""
+        """IRLS weights of the match term at ``s`` per component (H, W, 3), or None without one."""
         if self.m_t is None:
             return None
-        x2 = np.sum((s - self.m_t) ** 2, axis=-1) / self.sigma_m**2
-        return self.c_m * _rho_weight(x2, self.penalty) / self.sigma_m**2
+        x2 = np.sum(((s - self.m_t) / self.sigma_m) ** 2, axis=-1)
+        return (self.c_m * _rho_weight(x2, self.penalty))[..., None] / self.sigma_m**2
 
     def system(self, s):
         """The quadratic majoriser at ``s``: ``(N, rhs, Wv, Wh)`` with 0.5 grad = A s - rhs."""
@@ -417,8 +427,8 @@ class _Linearised:
         c_m = self.match_weights(s)
         if c_m is not None:
             for k in range(3):
-                N[..., k, k] += c_m
-            rhs += c_m[..., None] * self.m_t
+                N[..., k, k] += c_m[..., k]
+            rhs += c_m * self.m_t
         return N, rhs, Wv, Wh
 
     def gradient(self, s):
@@ -557,8 +567,15 @@ def _options(options):
         o[k] = positive(o[k], k)
     o["blur"] = nonnegative(o["blur"], "blur")
     o["match_weight"] = nonnegative(o["match_weight"], "match_weight")
+    o["sigma_d_z2"] = nonnegative(o["sigma_d_z2"], "sigma_d_z2")
     o["sigma_m"] = positive(o["sigma_m"], "sigma_m")
     o["hidden_weight"] = nonnegative(o["hidden_weight"], "hidden_weight")
+    for k in ("match_depth_weight", "search_radius", "match_texture"):
+        o[k] = nonnegative(o[k], k)
+    for k in ("match_depth_trunc", "match_cost", "match_max_dz", "fill_depth_scale", "fill_grey_scale",
+              "fill_reach"):
+        o[k] = positive(o[k], k)
+    o["match_window"] = positive_int(o["match_window"], "match_window")
     if o["penalty"] not in PENALTIES:
         raise ValueError(f"penalty must be one of {PENALTIES}, got {o['penalty']!r}")
     if o["levels"] is not None:
@@ -641,74 +658,11 @@ def _match_pyramid(target, weight, hidden, n):
     return out
 
 
-def _geodesic_steps(D, I, tau_z, tau_i, hole_step):
-    """Lengths of the horizontal and vertical pixel steps: 1 + |dZ| / tau_z + |dI| / tau_i."""
-    valid = D > 0
-    out = []
-    for a, b, va, vb, ia, ib in ((D[:, 1:], D[:, :-1], valid[:, 1:], valid[:, :-1], I[:, 1:], I[:, :-1]),
-                                 (D[1:], D[:-1], valid[1:], valid[:-1], I[1:], I[:-1])):
-        step = 1.0 + np.abs(ia - ib) / tau_i + np.where(va & vb, np.abs(a - b) / tau_z, hole_step)
-        out.append(np.ascontiguousarray(step))
-    return out
-
-
-def _depth_jumps(D, tau):
-    """Pixels with a 4-neighbour more than ``tau`` (m) nearer or farther, or without depth."""
-    valid = D > 0
-    out = ~valid
-    for ax in (0, 1):
-        j = np.abs(np.diff(D, axis=ax)) > tau
-        j &= np.delete(valid, 0, axis=ax) & np.delete(valid, -1, axis=ax)
-        if ax == 0:
-            out[1:] |= j
-            out[:-1] |= j
-        else:
-            out[:, 1:] |= j
-            out[:, :-1] |= j
-    return out
-
-
-def _geodesic_fill(m, known, D, I, o):
-    """``m`` (H, W, C) with every pixel not ``known`` set to its geodesically nearest known pixel's.
-
-    The geodesic length of a path counts depth and brightness jumps (:func:`_geodesic_steps`), so a
-    hidden or unmatched pixel takes the value of the nearest matched pixel *on its own surface*
-    (the edge-aware nearest-neighbour interpolation of EpicFlow, with depth edges).
-    """
-    # pixels on a depth edge (silhouettes, flying pixels between two surfaces) are no source: their
-    # depth is close to both sides' and their match often belongs to the other one
-    source = known & ~ndimage.binary_dilation(_depth_jumps(D, o["occlusion"]), iterations=1)
-    if source.any():
-        known = source
-    if known.all() or not known.any():
-        return m.copy()
-    ch, cv = _geodesic_steps(D, I, o["fill_depth_scale"], o["fill_grey_scale"], 100.0)
-    K = None if o["backend"] == "numpy" else _kernels()
-    if K is not None:
-        src = K.geodesic_nearest(ch, cv, known, 2)
-    else:
-        src = _geodesic_nearest_numpy(ch, cv, known, 2)
-    flat = m.reshape(-1, m.shape[-1])
-    return flat[src].reshape(m.shape)
-
-
-def _geodesic_nearest_numpy(cost_h, cost_v, known, passes):
-    """:func:`flowtrack._rgbd_kernels.geodesic_nearest` by the same sweeps, vectorised across lines."""
-    H, W = known.shape
-    dist = np.where(known, 0.0, np.inf)
-    src = np.where(known, np.arange(H * W).reshape(H, W), -1)
-    for _ in range(passes):
-        for j, jp in [(j, j - 1) for j in range(1, W)] + [(j, j + 1) for j in range(W - 2, -1, -1)]:
-            c = dist[:, jp] + cost_h[:, min(j, jp)]
-            better = c < dist[:, j]
-            dist[:, j] = np.where(better, c, dist[:, j])
-            src[:, j] = np.where(better, src[:, jp], src[:, j])
-        for i, ip in [(i, i - 1) for i in range(1, H)] + [(i, i + 1) for i in range(H - 2, -1, -1)]:
-            c = dist[ip] + cost_v[min(i, ip)]
-            better = c < dist[i]
-            dist[i] = np.where(better, c, dist[i])
-            src[i] = np.where(better, src[ip], src[i])
-    return src
+def _depth_sigma(Z, o):
+    """The depth-noise scale per pixel: sqrt(sigma_d^2 + (sigma_d_z2 Z^2)^2) (m)."""
+    if o["sigma_d_z2"] == 0.0:
+        return o["sigma_d"]
+    return np.sqrt(o["sigma_d"] ** 2 + (o["sigma_d_z2"] * Z * Z) ** 2)
 
 
 def _edge_weights(X, valid, intr, sigma_d, edge_scale):
@@ -737,6 +691,14 @@ def _level(I0, D0, I1, D1, intr, s, o, match=None):
     Z = np.where(valid0, D0, 1.0)  # placeholder depth 1 at invalid pixels (never used: no data there)
     X = np.stack([(xx - cx) / fx * Z, (yy - cy) / fy * Z, Z], axis=-1)
     wv, wh = _edge_weights(X, valid0, intr, o["sigma_d"], o["edge_scale"])
+    # depth noise of a disparity-based sensor grows with Z^2
+    sig_d = _depth_sigma(Z, o)
+    tau_occ = o["occlusion"] + 2.0 * (sig_d - o["sigma_d"])
+    sig_m = None
+    if m_t is not None:
+        # a match is good to sigma_m pixels across the ray; along it, to the noise of two depths
+        lat = o["sigma_m"] * Z / (0.5 * (fx + fy))
+        sig_m = np.stack([lat, lat, np.broadcast_to(np.sqrt(2.0) * sig_d, Z.shape)], axis=-1)
     I0x, I0y = _grad(I0)
     I1x, I1y = _grad(I1)
     valid1 = D1 > 0
@@ -764,7 +726,7 @@ def _level(I0, D0, I1, D1, intr, s, o, match=None):
         Iw, Ixw, Iyw, Dw, Dxw, Dyw, okw = np.moveaxis(smp, -1, 0)
         ok_d = inside & (okw > 0.999)
         # occluded at t+1: something clearly in front of the moved point
-        occluded = ok_d & (Dw < Zw - o["occlusion"])
+        occluded = ok_d & (Dw < Zw - tau_occ)
         m_i = (inside & ~occluded) * use_i
         m_d = (ok_d & ~occluded) * use_d
         if hidden is not None:
@@ -773,7 +735,7 @@ def _level(I0, D0, I1, D1, intr, s, o, match=None):
         if o["truncate_depth"]:
             # a surface clearly behind the moved point: the warp is wrong there or the point is on a
             # silhouette; the depth term would drag it onto the background
-            m_d = m_d * (Dw <= Zw + o["occlusion"])
+            m_d = m_d * (Dw <= Zw + tau_occ)
         gx = 0.5 * (Ixw + I0x)
         gy = 0.5 * (Iyw + I0y)
         Xj = np.concatenate([Xw[..., :2], Zw[..., None]], axis=-1)
@@ -783,8 +745,8 @@ def _level(I0, D0, I1, D1, intr, s, o, match=None):
         r_i = np.where(inside, Iw - I0, 0.0)
         r_d = np.where(ok_d, Dw - Zw, 0.0)
         prob = _Linearised(s.copy(), a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, o["lam"],
-                           o["sigma_i"], o["sigma_d"], o["sigma_s"], o["penalty"],
-                           m_t=m_t, c_m=c_m, sigma_m=o["sigma_m"])
+                           o["sigma_i"], sig_d, o["sigma_s"], o["penalty"],
+                           m_t=m_t, c_m=c_m, sigma_m=sig_m)
         for _ in range(o["irls"]):
             if K is None:
                 N, rhs, Wv, Wh = prob.system(s)
@@ -796,10 +758,10 @@ def _level(I0, D0, I1, D1, intr, s, o, match=None):
                 K.assemble(a_i, a_d, c_i, c_d, r_i, r_d, prob.s0, Wv, Wh, M, rhs)
                 w_m = prob.match_weights(s)
                 if w_m is not None:
-                    M[..., 0] += w_m
-                    M[..., 3] += w_m
-                    M[..., 5] += w_m
-                    rhs += w_m[..., None] * m_t
+                    M[..., 0] += w_m[..., 0]
+                    M[..., 3] += w_m[..., 1]
+                    M[..., 5] += w_m[..., 2]
+                    rhs += w_m * m_t
                 K.pcg(M, rhs, Wv, Wh, s, o["cg_iterations"])
     return s, prob
 
@@ -815,7 +777,14 @@ def _estimate(I0, D0, I1, D1, cam, o, match):
     s = None
     if match is not None:
         known = (match["conf"] > 0) & ~match["hidden"]
-        fill = _geodesic_fill(match["m"], known, D0, I0, o)
+        sig_d = _depth_sigma(D0, o)
+        fill, dist = geodesic_fill(match["m"], known, D0, I0,
+                                   depth_scale=o["fill_depth_scale"] + 2.0 * (sig_d - o["sigma_d"]),
+                                   grey_scale=o["fill_grey_scale"], edge_jump=o["occlusion"],
+                                   kernels=None if o["backend"] == "numpy" else _kernels())
+        # a surface without any matched pixel within reach keeps its own (unconfident) match
+        far = (dist > o["fill_reach"]) & ~match["hidden"]
+        fill = np.where(far[..., None], match["m"], fill)
         target = np.where(known[..., None], match["m"], fill)
         weight = o["match_weight"] * np.where(known, match["conf"], 0.0) + o["hidden_weight"] * match["hidden"]
         mpyr = _match_pyramid(target, weight, match["hidden"], n)
@@ -911,6 +880,11 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     match = None
     if not isinstance(o["init"], str):
         match = _initial_match(o["init"], shape, dt)
+    elif o["init"] == "matches":
+        K = None if o["backend"] == "numpy" else _kernels()
+        match = match_field(I0, D0, I1, D1, (cam.fx, cam.fy, cam.cx, cam.cy), o, K)
+        a, b = match["gain"]
+        I1 = (I1 - b) / a
     s, prob, n = _estimate(I0, D0, I1, D1, cam, o, match)
     v = s / dt
     v[~(D0 > 0)] = np.nan
