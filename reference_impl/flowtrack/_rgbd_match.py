@@ -201,6 +201,34 @@ def _structure(cv2, I, window):
 # --------------------------------------------------------------------------------------------------
 # the match field
 # --------------------------------------------------------------------------------------------------
+def _one_way(cv2, I0f, L0, V0, I1f, L1, V1, o):
+    """The selected optical flow from frame a to frame b: (flow, its cost, candidates, their costs)."""
+    H, W = I0f.shape
+    win = o["match_window"]
+    dw, dtr = o["match_depth_weight"], o["match_depth_trunc"]
+    g0, g1 = _u8(I0f), _u8(I1f)
+    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+    cands = [dis.calc(g0, g1, None)]
+    scale = max(0, int(np.round(np.log2(max(H, W) / 80.0))))
+    radius = int(np.ceil(o["search_radius"] / 2**scale))
+    if radius > 0:
+        coarse = _coarse_search(cv2, I0f, L0, V0, I1f, L1, V1, scale, radius, 5, dw, dtr)
+        coarse = cv2.resize(coarse, (W, H), interpolation=cv2.INTER_NEAREST)
+        # the block search's field is whole coarse pixels: DIS refines it (it is no candidate itself)
+        cands.append(dis.calc(g0, g1, coarse.copy()))
+    I0n = I0f - cv2.blur(I0f, (win, win))
+    I1n = I1f - cv2.blur(I1f, (win, win))
+    costs = np.stack([_cost(cv2, I0n, I1n, L0, V0, L1, V1, f, win, dw, dtr) for f in cands])
+    # DIS from zero unless another candidate is clearly better (in uniform regions the costs differ
+    # only by noise, and DIS's own smoothing is the better guess there)
+    margin = np.zeros((len(cands), 1, 1), np.float32)
+    margin[1:] = o["match_margin"]
+    best = np.argmin(costs + margin, axis=0)
+    flow = np.take_along_axis(np.stack(cands), best[None, ..., None], 0)[0]
+    cost = np.take_along_axis(costs, best[None], 0)[0]
+    return flow, cost, cands, costs
+
+
 def match_field(I0, D0, I1, D1, intr, o, kernels=None):
     """The match of every pixel of frame t (see the module documentation).
 
@@ -233,22 +261,11 @@ def match_field(I0, D0, I1, D1, intr, o, kernels=None):
     L1, V1 = _log_depth(D1)
     win = o["match_window"]
     dw, dtr = o["match_depth_weight"], o["match_depth_trunc"]
-    g0, g1 = _u8(I0), _u8(I1)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    cands = [dis.calc(g0, g1, None)]
-    scale = max(0, int(np.round(np.log2(max(H, W) / 80.0))))
-    radius = int(np.ceil(o["search_radius"] / 2**scale))
-    if radius > 0:
-        coarse = _coarse_search(cv2, I0f, L0, V0, I1f, L1, V1, scale, radius, 5, dw, dtr)
-        coarse = cv2.resize(coarse, (W, H), interpolation=cv2.INTER_NEAREST)
-        cands.append(coarse)
-        cands.append(dis.calc(g0, g1, coarse.copy()))
-    I0n = I0f - cv2.blur(I0f, (win, win))
-    I1n = I1f - cv2.blur(I1f, (win, win))
-    costs = np.stack([_cost(cv2, I0n, I1n, L0, V0, L1, V1, f, win, dw, dtr) for f in cands])
-    best = np.argmin(costs, axis=0)
-    flow = np.take_along_axis(np.stack(cands), best[None, ..., None], 0)[0].astype(np.float64)
-    cost = np.take_along_axis(costs, best[None], 0)[0]
+    flow, cost, cands, costs = _one_way(cv2, I0f, L0, V0, I1f, L1, V1, o)
+    back, _, _, _ = _one_way(cv2, I1f, L1, V1, I0f, L0, V0, o)
+    # forward-backward consistency: the backward flow at x + u leads back to x
+    fb = np.linalg.norm(flow + _warp(cv2, back, flow), axis=-1)
+    flow = flow.astype(np.float64)
 
     # lifting: x + u, and the depth at t+1 read at the valid one of its four pixels nearest Z0
     xx, yy = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
@@ -274,27 +291,33 @@ def match_field(I0, D0, I1, D1, intr, o, kernels=None):
     m = np.where((valid0 & (Z1 > 0))[..., None], X1 - X0, 0.0)
 
     # confidence
+    # the thresholds are relative to the image's typical cost (its noise level): the median cost
     tex = _structure(cv2, I0f, win)
-    good_cost = cost <= o["match_cost"]
+    typical = float(np.median(cost[valid0])) if valid0.any() else 1.0
+    good_cost = cost <= o["match_cost"] * typical
     tau = o["occlusion"]
     on_edge = ndimage.binary_dilation(depth_jumps(D0, tau), iterations=1)
     plausible = near <= o["match_max_dz"]
-    conf = valid0 & inside & np.isfinite(near) & plausible & good_cost & ~on_edge & (tex >= o["match_texture"])
+    conf = (valid0 & inside & np.isfinite(near) & plausible & good_cost & ~on_edge
+            & (tex >= o["match_texture"] * typical**2) & (fb <= o["match_fb"]))
     # hidden at t+1: a surface clearly in front of where the point was, and no good match
     hidden = valid0 & ((~inside) | ((front < D0 - tau) & ~good_cost)) & ~conf
 
-    # brightness: I1(x + u) = a I0(x) + b, fitted on the matched pixels (median residual refits)
+    # brightness: I1(x + u) = a I0(x) + b, fitted on the pixels matched with a low cost (a few
+    # least-squares refits without the residuals beyond three robust standard deviations)
     gain = (1.0, 0.0)
-    if conf.sum() > 50:
-        i1 = _warp(cv2, I1f, flow.astype(np.float32))[conf].astype(np.float64)
-        i0 = I0f[conf].astype(np.float64)
+    fit = valid0 & inside & ~on_edge & (cost <= np.quantile(cost[valid0], 0.5))
+    if fit.sum() > 100:
+        i1 = _warp(cv2, I1f, flow.astype(np.float32))[fit].astype(np.float64)
+        i0 = I0f[fit].astype(np.float64)
         keep = np.ones(i0.size, bool)
-        for _ in range(3):
+        a, b = 1.0, 0.0
+        for _ in range(4):
             A = np.column_stack([i0[keep], np.ones(keep.sum())])
             a, b = np.linalg.lstsq(A, i1[keep], rcond=None)[0]
             r = np.abs(i1 - (a * i0 + b))
             keep = r <= 3.0 * 1.4826 * np.median(r) + 1e-6
-        if 0.5 < a < 2.0:
+        if 0.5 < a < 2.0 and np.ptp(i0[keep]) > 0.05:
             gain = (float(a), float(b))
     return {"m": m, "conf": conf.astype(np.float64), "hidden": hidden, "flow": flow, "gain": gain,
-            "cost": cost, "texture": tex}
+            "cost": cost, "texture": tex, "candidates": cands, "costs": costs, "fb": fb}

@@ -165,9 +165,11 @@ _DEFAULTS = {
     "match_depth_weight": 0.05,
     "match_depth_trunc": 0.1,
     "search_radius": 28,
-    "match_cost": 0.03,
+    "match_cost": 3.0,
+    "match_fb": 1.0,
+    "match_margin": 0.002,
     "match_max_dz": 0.1,
-    "match_texture": 5e-5,
+    "match_texture": 0.3,
     "backend": "auto",
     "return_info": False,
 }
@@ -570,9 +572,9 @@ def _options(options):
     o["sigma_d_z2"] = nonnegative(o["sigma_d_z2"], "sigma_d_z2")
     o["sigma_m"] = positive(o["sigma_m"], "sigma_m")
     o["hidden_weight"] = nonnegative(o["hidden_weight"], "hidden_weight")
-    for k in ("match_depth_weight", "search_radius", "match_texture"):
+    for k in ("match_depth_weight", "search_radius", "match_texture", "match_margin"):
         o[k] = nonnegative(o[k], k)
-    for k in ("match_depth_trunc", "match_cost", "match_max_dz", "fill_depth_scale", "fill_grey_scale",
+    for k in ("match_depth_trunc", "match_cost", "match_fb", "match_max_dz", "fill_depth_scale", "fill_grey_scale",
               "fill_reach"):
         o[k] = positive(o[k], k)
     o["match_window"] = positive_int(o["match_window"], "match_window")
