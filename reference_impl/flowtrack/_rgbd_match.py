@@ -37,7 +37,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["depth_jumps", "geodesic_fill", "geodesic_nearest_numpy", "geodesic_steps", "match_field"]
+__all__ = ["depth_jumps", "geodesic_fill", "geodesic_nearest_numpy", "geodesic_steps", "match_field",
+           "pixel_cost"]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -188,6 +189,21 @@ def _cost(cv2, I0n, I1n, L0, V0, L1, V1, flow, window, depth_weight, depth_trunc
     return cv2.blur(c + (depth_weight / depth_trunc) * d, (window, window))
 
 
+def pixel_cost(I0, D0, I1, D1, flow, o):
+    """The matching cost of an optical flow ``flow`` (H, W, 2) at every pixel (the selection's cost)."""
+    import cv2
+
+    win = o["match_window"]
+    I0f = np.ascontiguousarray(I0, dtype=np.float32)
+    I1f = np.ascontiguousarray(I1, dtype=np.float32)
+    L0, V0 = _log_depth(D0)
+    L1, V1 = _log_depth(D1)
+    I0n = I0f - cv2.blur(I0f, (win, win))
+    I1n = I1f - cv2.blur(I1f, (win, win))
+    return _cost(cv2, I0n, I1n, L0, V0, L1, V1, flow.astype(np.float32), win, o["match_depth_weight"],
+                 o["match_depth_trunc"])
+
+
 def _structure(cv2, I, window):
     """Smaller eigenvalue of the structure tensor of ``I`` summed over ``window`` (grey² per px²)."""
     gx = cv2.Sobel(I, cv2.CV_32F, 1, 0, ksize=3) / 8.0
@@ -320,4 +336,4 @@ def match_field(I0, D0, I1, D1, intr, o, kernels=None):
         if 0.5 < a < 2.0 and np.ptp(i0[keep]) > 0.05:
             gain = (float(a), float(b))
     return {"m": m, "conf": conf.astype(np.float64), "hidden": hidden, "flow": flow, "gain": gain,
-            "cost": cost, "texture": tex, "candidates": cands, "costs": costs, "fb": fb}
+            "cost": cost, "typical": typical, "texture": tex, "candidates": cands, "costs": costs, "fb": fb}

@@ -120,6 +120,7 @@ from scipy import ndimage
 
 from ._validation import nonnegative, positive, positive_int
 from ._rgbd_match import geodesic_fill, match_field
+from ._rgbd_segments import rigid_field
 from .camera import PinholeCamera, check_camera
 
 __all__ = [
@@ -161,6 +162,12 @@ _DEFAULTS = {
     "fill_grey_scale": 1.0,
     "hidden_weight": 0.1,
     "fill_reach": 50.0,
+    "rigid": True,
+    "structure_sigma": 0.0,
+    "rigid_margin": 0.5,
+    "rigid_levels": 4,
+    "rigid_min_pixels": 40,
+    "rigid_max_pixels": 1500,
     "match_window": 7,
     "match_depth_weight": 0.05,
     "match_depth_trunc": 0.1,
@@ -568,6 +575,7 @@ def _options(options):
     for k in ("sigma_i", "sigma_d", "sigma_s", "edge_scale", "occlusion"):
         o[k] = positive(o[k], k)
     o["blur"] = nonnegative(o["blur"], "blur")
+    o["structure_sigma"] = nonnegative(o["structure_sigma"], "structure_sigma")
     o["match_weight"] = nonnegative(o["match_weight"], "match_weight")
     o["sigma_d_z2"] = nonnegative(o["sigma_d_z2"], "sigma_d_z2")
     o["sigma_m"] = positive(o["sigma_m"], "sigma_m")
@@ -585,7 +593,7 @@ def _options(options):
     o["min_size"] = positive_int(o["min_size"], "min_size", minimum=2)
     for k in ("warps", "irls", "cg_iterations"):
         o[k] = positive_int(o[k], k)
-    for k in ("use_depth", "use_color", "return_info", "truncate_depth"):
+    for k in ("use_depth", "use_color", "return_info", "truncate_depth", "rigid"):
         if not isinstance(o[k], (bool, np.bool_)):
             raise TypeError(f"{k} must be a bool, got {type(o[k]).__name__}")
     if o["backend"] not in BACKENDS:
@@ -790,6 +798,7 @@ def _estimate(I0, D0, I1, D1, cam, o, match):
         target = np.where(known[..., None], match["m"], fill)
         weight = o["match_weight"] * np.where(known, match["conf"], 0.0) + o["hidden_weight"] * match["hidden"]
         mpyr = _match_pyramid(target, weight, match["hidden"], n)
+        match["init"] = fill
         s = fill
         for _ in range(n - 1):
             s = _down(s) / 4.0
@@ -884,14 +893,26 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
         match = _initial_match(o["init"], shape, dt)
     elif o["init"] == "matches":
         K = None if o["backend"] == "numpy" else _kernels()
-        match = match_field(I0, D0, I1, D1, (cam.fx, cam.fy, cam.cx, cam.cy), o, K)
+        intr = (cam.fx, cam.fy, cam.cx, cam.cy)
+        match = match_field(I0, D0, I1, D1, intr, o, K)
         a, b = match["gain"]
-        I1 = (I1 - b) / a
+        I1n = (I1 - b) / a
+        if o["structure_sigma"] > 0:
+            # structure-texture split (Wedel et al. 2009): the shading of a turning face changes
+            # between the frames, its texture does not; the photometric terms see the texture
+            T0 = I0 - ndimage.gaussian_filter(I0, o["structure_sigma"], mode="nearest")
+            T1 = I1n - ndimage.gaussian_filter(I1n, o["structure_sigma"], mode="nearest")
+        else:
+            T0, T1 = I0, I1n
+        if o["rigid"]:
+            pyr = _pyramid(T0, D0, T1, D1, cam, _n_levels(*shape, o["min_size"], o["rigid_levels"]))
+            match = rigid_field(match, I0, D0, I1, D1, pyr, intr, o)
+        I0, I1 = T0, T1
     s, prob, n = _estimate(I0, D0, I1, D1, cam, o, match)
     v = s / dt
     v[~(D0 > 0)] = np.nan
     if o["return_info"]:
-        return v, {"levels": n, "problem": prob}
+        return v, {"levels": n, "problem": prob, "match": match}
     return v
 
 
