@@ -14,6 +14,7 @@ import scipy.sparse as sp
 import sympy
 from scipy.sparse.linalg import spsolve
 
+from flowtrack import _rgbd_energy as E
 from flowtrack import rgbd_flow as R
 from flowtrack.camera import PinholeCamera, projection_jacobian
 from flowtrack.sceneflow import rgbd_scene_flow
@@ -134,7 +135,7 @@ def _random_problem(rng, h=6, w=7, penalty="charbonnier", holes=True):
     if holes:
         m_i[1, 2] = m_d[1, 2] = 0.0
         m_d[3, 4] = 0.0
-    return R._Linearised(
+    return E.Linearised(
         s0=0.01 * rng.normal(size=(h, w, 3)), a_i=a_i, r_i=0.05 * rng.normal(size=(h, w)), m_i=m_i,
         a_d=a_d, r_d=0.005 * rng.normal(size=(h, w)), m_d=m_d,
         wv=rng.uniform(0.05, 1.0, (h - 1, w)), wh=rng.uniform(0.05, 1.0, (h, w - 1)),
@@ -183,7 +184,7 @@ def test_quadratic_case_equals_direct_sparse_solve():
     A, rhs = _sparse_system(prob)
     s_ref = spsolve(A, rhs).reshape(prob.s0.shape)
     N, b, Wv, Wh = prob.system(prob.s0)
-    s_np = R._pcg(N, b, Wv, Wh, prob.s0.copy(), 2000)
+    s_np = E.pcg(N, b, Wv, Wh, prob.s0.copy(), 2000)
     np.testing.assert_allclose(s_np, s_ref, rtol=0, atol=1e-9 * np.abs(s_ref).max())
     K = R._kernels()
     M = np.empty((*prob.s0.shape[:2], 6))
@@ -237,7 +238,7 @@ def test_euler_lagrange_from_sympy_matches_the_discrete_operator():
         # smoothness lam * w_edge * |s_p - s_q|^2 with w at the edge midpoints
         wv = full(S["w"], xx[:-1], yy[:-1] + h / 2)
         wh = full(S["w"], xx[:, :-1] + h / 2, yy[:, :-1])
-        prob = R._Linearised(np.zeros_like(s), a_i, full(S["r_I"]), full(S["c_I"]) * h * h, a_d,
+        prob = E.Linearised(np.zeros_like(s), a_i, full(S["r_I"]), full(S["c_I"]) * h * h, a_d,
                              full(S["r_D"]), full(S["c_D"]) * h * h, wv, wh, lam, 1.0, 1.0, 1.0, "quadratic")
         g = prob.gradient(s) / (h * h)
         ref = np.stack([np.broadcast_to(e(xx, yy), xx.shape) for e in el], -1)

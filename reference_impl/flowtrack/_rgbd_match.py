@@ -309,13 +309,17 @@ def match_field(I0, D0, I1, D1, intr, o, kernels=None):
     # confidence
     # the thresholds are relative to the image's typical cost (its noise level): the median cost
     tex = _structure(cv2, I0f, win)
-    typical = float(np.median(cost[valid0])) if valid0.any() else 1.0
+    # (at least half a grey level: a noiseless rendering matches perfectly where nothing moves)
+    typical = max(float(np.median(cost[valid0])) if valid0.any() else 1.0, 0.002)
     good_cost = cost <= o["match_cost"] * typical
     tau = o["occlusion"]
     on_edge = ndimage.binary_dilation(depth_jumps(D0, tau), iterations=1)
     plausible = near <= o["match_max_dz"]
     conf = (valid0 & inside & np.isfinite(near) & plausible & good_cost & ~on_edge
-            & (tex >= o["match_texture"] * typical**2) & (fb <= o["match_fb"]))
+            & (tex >= o["match_texture"] * typical**2)
+            # the backward flow confirms the match, or its cost alone is convincing (the backward
+            # flow of a surface at the image border, half of it gone at t+1, is often lost)
+            & ((fb <= o["match_fb"]) | (cost <= o["match_sure"] * typical)))
     # hidden at t+1: a surface clearly in front of where the point was, and no good match
     hidden = valid0 & ((~inside) | ((front < D0 - tau) & ~good_cost)) & ~conf
 

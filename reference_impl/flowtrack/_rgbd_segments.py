@@ -133,13 +133,17 @@ def _evaluate(X, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, want_syste
     # cost per pixel: the Charbonnier penalties; moved out of the image or behind a nearer surface:
     # as much as a poor colour match; on a surface that is clearly not there (depth far off): a poor
     # depth match; depth unknown at t+1 (holes, edges): no depth term
+    # (a pixel moved out of the image has no term: leaving the image is no evidence against a motion,
+    # but a motion that keeps under half of a segment in view is not believed)
     pen_i = np.where(m_i, 2.0 * (np.sqrt(1.0 + x_i) - 1.0), _MISS)
     off = ok_d & ~occluded & ~m_d
     pen_d = np.where(m_d, 2.0 * (np.sqrt(1.0 + x_d) - 1.0), _MISS)
     n_d = np.bincount(hyp, m_d | off, n_hyp)
+    n_in = np.bincount(hyp, inside, n_hyp)
     count = np.bincount(hyp, minlength=n_hyp).astype(np.float64)
-    cost = (np.bincount(hyp, pen_i, n_hyp) / np.maximum(count, 1.0)
+    cost = (np.bincount(hyp, np.where(inside, pen_i, 0.0), n_hyp) / np.maximum(n_in, 1.0)
             + np.bincount(hyp, np.where(m_d | off, pen_d, 0.0), n_hyp) / np.maximum(n_d, 1.0))
+    cost = np.where(n_in < 0.5 * count, cost + 2.0 * _MISS, cost)
     if not want_system:
         return cost, None, None
     iz = 1.0 / Z
@@ -189,6 +193,7 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
     """
     K = inits.shape[1]
     Rt = inits.reshape(n_seg * K, 3, 4).copy()
+    twist = np.zeros((n_seg * K, 6))  # the motion since the start (to first order)
     alive = np.ones(n_seg * K, bool)
     levels = min(o["rigid_levels"], len(pyr))
     sig_i, sig_d, tau = 2.0 * o["sigma_i"], 2.0 * o["sigma_d"], o["occlusion"]
@@ -236,9 +241,14 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
             if not good.any():
                 break
             Ag = A[good]
+            # a weak pull back to the start: the directions the data do not see (a plane sliding in
+            # itself, a uniform cylinder turning about its axis) stay where they started
+            prior = o["rigid_prior"] * np.einsum("nii->n", Ag)[:, None, None] / 6.0 * np.eye(6)
+            bg = b[good] + np.einsum("nij,nj->ni", prior, twist[good])
+            Ag = Ag + prior
             # Levenberg–Marquardt: the diagonal scaled up until a step lowers the cost
             Ag = Ag + (damp[good][:, None, None] * np.eye(6)) * (np.einsum("nii->ni", Ag)[:, :, None] + 1e-9)
-            delta = -np.linalg.solve(Ag, b[good][..., None])[..., 0]
+            delta = -np.linalg.solve(Ag, bg[..., None])[..., 0]
             trial = Rt.copy()
             dR = so3_exp(delta[:, 3:])
             trial[good, :, :3] = dR @ Rt[good, :, :3]
@@ -246,6 +256,8 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
             c_new, A_new, b_new = _evaluate(Xp, I0p, hyp, trial, stack, intr, sig_i, sig_d, tau, n_hyp, True)
             better = good & (c_new <= cost)
             Rt[better] = trial[better]
+            tw = twist[good] + delta
+            twist[better] = tw[better[good]]
             cost = np.where(better, c_new, cost)
             A[better], b[better] = A_new[better], b_new[better]
             damp = np.where(better, np.maximum(damp * 0.3, 1e-6), np.where(good, damp * 10.0, damp))
@@ -319,11 +331,26 @@ def rigid_field(match, I0, D0, I1, D1, pyr, intr, o):
     dz = np.where(on, np.abs(s_r[..., 2]), 0.0)
     wild = np.zeros(n + 1, bool)
     np.logical_or.at(wild, np.where(on, seg, n), (speed > 1.5 * o["search_radius"]) | (dz > o["match_max_dz"]))
+    # ... nor one that its own matched pixels contradict (the median disagreement of a segment with
+    # at least a few matched pixels must be small: a wall and a floor slide along each other unseen)
+    gap = np.where(on & conf, np.linalg.norm(flow_r - match["flow"], axis=-1), np.nan)
+    sid = np.where(on & conf, seg, n)
+    cnt = np.bincount(sid.ravel(), minlength=n + 1)
+    order = np.argsort(sid.ravel(), kind="stable")
+    gs = gap.ravel()[order]
+    starts = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+    for k in np.nonzero(cnt[:n] >= 5)[0]:
+        if np.median(gs[starts[k]:starts[k] + cnt[k]]) > o["rigid_agree"]:
+            wild[k] = True
     on &= ~wild[np.where(on, seg, n)]
     cost_r = pixel_cost(I0, D0, I1, D1, np.where(on[..., None], flow_r, 0.0), o)
     typical = match["typical"]
-    take = on & (cost_r <= match["cost"] + o["rigid_margin"] * typical)
+    # a matched pixel keeps its match unless the rigid motion fits it better; an unmatched one takes
+    # the rigid motion unless it fits clearly worse
+    margin = np.where(conf, 0.0, o["rigid_margin"] * typical)
     inside = (u >= 0) & (v >= 0) & (u <= W - 1) & (v <= H - 1)
+    # a pixel the rigid motion takes out of the image has no cost to compare: it moves with its segment
+    take = on & ((cost_r <= match["cost"] + margin) | ~inside)
     # behind a nearer surface: every valid depth around the target clearly in front of the point
     ui = np.clip(np.floor(u).astype(np.intp), 0, W - 2)
     vi = np.clip(np.floor(v).astype(np.intp), 0, H - 2)
