@@ -16,8 +16,10 @@ background. In front of it float 2–6 rigid objects: boxes, cylinders, spheres 
 of 5–15 mm radius, plates 3–8 mm thick), 3–30 cm across, their centres 0.5–3 m from the camera;
 each is either textured (two octaves of solid value noise in the object's own frame, so the texture
 moves with the body) or nearly uniform in colour (±0.5–3 %), Lambertian with an ambient term, some
-with a mild specular highlight. Each moves by a translation and a rotation about its centre whose
-fastest visible pixel moves 0–25 px per frame; objects start outside the image and enter, leave it,
+with a mild specular highlight. Each moves by a translation and a rotation about its centre (in a
+sequence on a slightly curved path) whose fastest pixel moves 0–25 px per frame (a flow pair: the
+fastest visible pixel of its fastest object moves exactly as its class says; a sequence: no point of
+an object's bounding sphere moves more than its class's upper bound); objects enter, leave the image,
 pass in front of each other (occlusions, disocclusions); bounding spheres never interpenetrate, and
 no object is inside the floor or the wall while it can be seen. Between frames the global brightness
 (exposure gain) may change by ±3–10 %; the colour image is blurred by a 0.5 px Gaussian (optics) and
@@ -60,6 +62,7 @@ in the TUM layout that ``flowtrack demo --input`` reads, with ``objects.csv``), 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -454,6 +457,7 @@ def _draw_motion(rng, ob, K, trans_px, rot_px, horizontal=False, accel=0.0, n_fr
     rotation whose fastest point moves ``rot_px`` px per frame, at the object's depth."""
     f = K[0]
     z = ob.c0[2]
+    ob.a = np.zeros(3)
     if horizontal:  # mostly sideways (objects on a sequence cross the image rather than fall)
         psi = rng.normal(0, 0.45) + (np.pi if rng.random() < 0.5 else 0.0)
     else:
@@ -821,6 +825,7 @@ def _sequence_scene(spec: SequenceSpec) -> _Scene:
             rot = rng.uniform(0.0, 0.5 * hi) if rng.random() < 0.6 else 0.0
             _draw_motion(rng, ob, K, trans, rot, horizontal=True, accel=rng.uniform(0.0, 1.0),
                          n_frames=spec.n_frames)
+            _cap_motion(ob, K, spec.size, times, hi)
             if _valid_motion(ob, placed, planes, up, K, spec.size, times):
                 placed.append(ob)
                 break
@@ -833,6 +838,37 @@ def _sequence_scene(spec: SequenceSpec) -> _Scene:
                               0.7, 1.3))
         scene.gains[i] = g
     return scene
+
+
+_SPHERE = np.array([v for v in np.ndindex(3, 3, 3) if v != (1, 1, 1)], float) - 1.0
+_SPHERE /= np.linalg.norm(_SPHERE, axis=1, keepdims=True)  # 26 directions
+
+
+def fastest_pixel(ob: _Object, K, size, times) -> float:
+    """Largest image displacement (px) between consecutive frames of 26 points on the object's bounding
+    sphere, over the frames in which the object is in view (at least that of any of its pixels)."""
+    fx, fy = K[:2]
+    best = 0.0
+    P = ob.rho * _SPHERE
+    for t0, t1 in itertools.pairwise(times):
+        if not (_in_view(ob, t0, K, size) or _in_view(ob, t1, K, size)):
+            continue
+        (R0, c0), (R1, c1) = ob.pose(t0), ob.pose(t1)
+        X0, X1 = P @ R0.T + c0, P @ R1.T + c1
+        d = np.hypot(fx * (X1[:, 0] / X1[:, 2] - X0[:, 0] / X0[:, 2]),
+                     fy * (X1[:, 1] / X1[:, 2] - X0[:, 1] / X0[:, 2]))
+        best = max(best, float(d.max()))
+    return best
+
+
+def _cap_motion(ob: _Object, K, size, times, limit: float) -> None:
+    """Scale the motion down until no point of the bounding sphere moves more than ``limit`` px per frame."""
+    for _ in range(4):
+        fast = fastest_pixel(ob, K, size, times)
+        if fast <= limit:
+            return
+        s = 0.98 * limit / fast
+        ob.v, ob.a, ob.w = ob.v * s, ob.a * s, ob.w * s
 
 
 def render_sequence_frames(spec: SequenceSpec):

@@ -165,3 +165,13 @@ def test_a_sequence_round_trips_through_the_tum_reader(tmp_path):
     for k, (c, npx, area) in truth[3].items():
         assert np.allclose(c, made["truth"][3][k][0], atol=1e-6)
         assert npx == made["truth"][3][k][1] and (npx > 0) == (area > 0)
+
+
+def test_sequence_objects_never_move_faster_than_their_class_allows():
+    for spec in E.TEST_SEQUENCES[::2]:
+        scene = E._sequence_scene(spec)
+        times = np.arange(spec.n_frames, dtype=float)
+        hi = E.SEQUENCE_SPEEDS[spec.speed][1]
+        assert 2 <= len(scene.objects) <= 6
+        for ob in scene.objects:
+            assert E.fastest_pixel(ob, scene.K, spec.size, times) <= hi + 1e-6

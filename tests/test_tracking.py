@@ -1108,3 +1108,12 @@ def test_position_covs_are_validated():
         trk.step(np.zeros((1, 2)), position_covs=-np.eye(2)[None])
     with pytest.raises(ValueError, match="position_covs needs"):
         MultiObjectTracker(0.1, 0.01, 1e-4, dim=2).step(np.zeros((1, 2)), position_covs=np.eye(2)[None])
+
+
+def test_a_frame_without_detections_with_position_covariances_is_a_miss():
+    # the demo passes (0, 3, 3) position covariances for a frame without detections
+    trk = MultiObjectTracker(dt=0.1, q=1.0, r=1e-4, dim=3, velocity_update=True, min_hits=1)
+    trk.step(np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 3)), np.eye(3)[None] * 1e-2,
+             position_covs=np.eye(3)[None] * 1e-4)
+    out = trk.step(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3)), position_covs=np.zeros((0, 3, 3)))
+    assert [(t.id, t.status, t.misses) for t in out] == [(0, "coasting", 1)]
