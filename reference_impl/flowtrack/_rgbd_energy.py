@@ -83,6 +83,16 @@ class Linearised:
         x2 = np.sum(((s - self.m_t) / self.sigma_m) ** 2, axis=-1)
         return (self.c_m * rho_weight(x2, self.penalty))[..., None] / self.sigma_m**2
 
+    def add_match(self, M, rhs, s):
+        """Add the match term's IRLS weights at ``s`` to the 6-entry blocks ``M`` (xx, xy, xz, yy, yz, zz)
+        and to ``rhs`` (H, W, 3) of an assembled system without it (the compiled path)."""
+        w = self.match_weights(s)
+        if w is not None:
+            M[..., 0] += w[..., 0]
+            M[..., 3] += w[..., 1]
+            M[..., 5] += w[..., 2]
+            rhs += w * self.m_t
+
     def system(self, s):
         """The quadratic majoriser at ``s``: ``(N, rhs, Wv, Wh)`` with 0.5 grad = A s - rhs."""
         c_i, c_d, Wv, Wh = self.weights(s)

@@ -111,8 +111,10 @@ def _level_data(I1, D1, tau_jump):
     return np.stack([I1, Ix, Iy, D1, Dx, Dy, ok.astype(np.float64)], axis=-1)
 
 
-def _evaluate(X, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, want_system):
-    """Robust cost per hypothesis (and its Gauss–Newton system) at the motions ``Rt`` (n, 3, 4)."""
+def _evaluate(X, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, want_system, centre=None):
+    """Robust cost per hypothesis (and its Gauss–Newton system) at the motions ``Rt`` (n, 3, 4); the
+    system's rotation is about ``centre`` (n, 3) (the segment's moved centroid: it decouples turning
+    from moving)."""
     fx, fy, cx, cy = intr
     R = Rt[hyp, :, :3]
     Y = np.einsum("nij,nj->ni", R, X) + Rt[hyp, :, 3]
@@ -156,8 +158,9 @@ def _evaluate(X, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, want_syste
     a_i = rows(Ixw, Iyw)
     a_d = rows(np.where(ok_d, Dxw, 0.0), np.where(ok_d, Dyw, 0.0))
     a_d[:, 2] -= 1.0
-    J_i = np.concatenate([a_i, np.cross(Y, a_i)], axis=1)
-    J_d = np.concatenate([a_d, np.cross(Y, a_d)], axis=1)
+    arm = Y - centre[hyp]
+    J_i = np.concatenate([a_i, np.cross(arm, a_i)], axis=1)
+    J_d = np.concatenate([a_d, np.cross(arm, a_d)], axis=1)
     w_i = m_i / np.sqrt(1.0 + x_i) / sig_i**2
     w_d = m_d / np.sqrt(1.0 + x_d) / sig_d**2
     A = np.zeros((n_hyp, 6, 6))
@@ -233,9 +236,16 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
         stack = _level_data(I1, D1, 3.0 * tau)
         n_hyp = n_seg * K
         # a hypothesis moves at this level only where its segment has enough pixels here
-        enough = alive & (np.bincount(hyp, minlength=n_hyp) >= o["rigid_min_pixels"])
+        n_of = np.bincount(hyp, minlength=n_hyp).astype(np.float64)
+        enough = alive & (n_of >= o["rigid_min_pixels"])
         damp = np.full(n_hyp, 1e-4)
-        cost, A, b = _evaluate(Xp, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, True)
+        # each segment's centroid at t: its rotations are about it
+        c0 = np.stack([np.bincount(hyp, Xp[:, k], n_hyp) for k in range(3)], axis=1) / np.maximum(n_of, 1.0)[:, None]
+
+        def centre(M):
+            return np.einsum("nij,nj->ni", M[:, :, :3], c0) + M[:, :, 3]
+
+        cost, A, b = _evaluate(Xp, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, True, centre(Rt))
         for _ in range(iterations):
             good = enough & (np.abs(A).sum(axis=(1, 2)) > 0)
             if not good.any():
@@ -243,7 +253,7 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
             Ag = A[good]
             # a weak pull back to the start: the directions the data do not see (a plane sliding in
             # itself, a uniform cylinder turning about its axis) stay where they started
-            prior = o["rigid_prior"] * np.einsum("nii->n", Ag)[:, None, None] / 6.0 * np.eye(6)
+            prior = o["rigid_prior"] * np.einsum("nii->ni", Ag)[:, :, None] * np.eye(6)
             bg = b[good] + np.einsum("nij,nj->ni", prior, twist[good])
             Ag = Ag + prior
             # Levenberg–Marquardt: the diagonal scaled up until a step lowers the cost
@@ -251,12 +261,20 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
             delta = -np.linalg.solve(Ag, bg[..., None])[..., 0]
             trial = Rt.copy()
             dR = so3_exp(delta[:, 3:])
+            c = centre(Rt)[good]
             trial[good, :, :3] = dR @ Rt[good, :, :3]
-            trial[good, :, 3] = np.einsum("nij,nj->ni", dR, Rt[good, :, 3]) + delta[:, :3]
-            c_new, A_new, b_new = _evaluate(Xp, I0p, hyp, trial, stack, intr, sig_i, sig_d, tau, n_hyp, True)
-            better = good & (c_new <= cost)
-            Rt[better] = trial[better]
+            trial[good, :, 3] = np.einsum("nij,nj->ni", dR, Rt[good, :, 3] - c) + c + delta[:, :3]
+            c_new, A_new, b_new = _evaluate(Xp, I0p, hyp, trial, stack, intr, sig_i, sig_d, tau, n_hyp, True,
+                                            centre(trial))
+            # the step must lower the cost with the prior's share (E = data + tw'P tw / 2, the mean
+            # Charbonnier cost being 2 E / n per pixel)
             tw = twist[good] + delta
+            n_px = np.maximum(n_of[good], 1.0)
+            gain = (cost[good] + np.einsum("ni,nij,nj->n", twist[good], prior, twist[good]) / n_px) - (
+                c_new[good] + np.einsum("ni,nij,nj->n", tw, prior, tw) / n_px)
+            better = np.zeros(n_hyp, bool)
+            better[np.nonzero(good)[0][gain >= 0]] = True
+            Rt[better] = trial[better]
             twist[better] = tw[better[good]]
             cost = np.where(better, c_new, cost)
             A[better], b[better] = A_new[better], b_new[better]

@@ -142,12 +142,12 @@ _DEFAULTS = {
     "lam": 0.05,
     "sigma_i": 0.02,
     "sigma_d": 0.004,
-    "sigma_d_z2": 0.0,
+    "sigma_d_z2": 0.0015,
     "sigma_s": 0.001,
     "edge_scale": 3.0,
     "occlusion": 0.02,
     "penalty": "charbonnier",
-    "levels": None,
+    "levels": 2,
     "min_size": 6,
     "warps": 3,
     "irls": 2,
@@ -155,10 +155,10 @@ _DEFAULTS = {
     "blur": 0.8,
     "use_depth": True,
     "use_color": True,
-    "init": "zero",
-    "match_weight": 0.0,
+    "init": "matches",
+    "match_weight": 1.0,
     "sigma_m": 1.0,
-    "truncate_depth": False,
+    "truncate_depth": True,
     "fill_depth_scale": 0.005,
     "fill_grey_scale": 1.0,
     "hidden_weight": 0.1,
@@ -167,7 +167,7 @@ _DEFAULTS = {
     "structure_sigma": 0.0,
     "rigid_margin": 0.5,
     "rigid_agree": 1e9,
-    "rigid_prior": 1e-3,
+    "rigid_prior": 1e-2,
     "rigid_levels": 4,
     "rigid_min_pixels": 40,
     "rigid_max_pixels": 1500,
@@ -596,12 +596,7 @@ def _level(I0, D0, I1, D1, intr, s, o, match=None):
                 M = np.empty((H, W, 6))
                 rhs = np.empty((H, W, 3))
                 K.assemble(a_i, a_d, c_i, c_d, r_i, r_d, prob.s0, Wv, Wh, M, rhs)
-                w_m = prob.match_weights(s)
-                if w_m is not None:
-                    M[..., 0] += w_m[..., 0]
-                    M[..., 3] += w_m[..., 1]
-                    M[..., 5] += w_m[..., 2]
-                    rhs += w_m * m_t
+                prob.add_match(M, rhs, s)
                 K.pcg(M, rhs, Wv, Wh, s, o["cg_iterations"])
     return s, prob
 
