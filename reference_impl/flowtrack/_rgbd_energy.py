@@ -11,7 +11,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Linearised", "pcg", "rho", "rho_weight"]
+__all__ = ["Linearised", "depth_sigma", "pcg", "rho", "rho_weight"]
+
+
+def depth_sigma(Z, o):
+    """The depth-noise scale (m) at depth ``Z``: :math:`\sqrt{\sigma_d^2 + (\sigma_{d2} Z^2)^2}` (the noise
+    of a disparity-based sensor grows with :math:`Z^2`); ``o`` holds ``sigma_d`` and ``sigma_d_z2``."""
+    if o["sigma_d_z2"] == 0.0:
+        return o["sigma_d"]
+    return np.sqrt(o["sigma_d"] ** 2 + (o["sigma_d_z2"] * np.asarray(Z) ** 2) ** 2)
 
 
 def rho(x2, penalty):

@@ -28,6 +28,7 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from ._rgbd_energy import depth_sigma
 from ._rgbd_match import pixel_cost
 
 __all__ = ["depth_segments", "rigid_field", "segment_motions", "so3_exp"]
@@ -101,18 +102,23 @@ def _grad(a):
 
 
 def _level_data(I1, D1, tau_jump):
-    """The sampled stack of frame t+1: I, dI/dx, dI/dy, D, dD/dx, dD/dy, ok (depth, no jump near)."""
+    """The sampled stack of frame t+1: I, dI/dx, dI/dy, D, dD/dx, dD/dy, ok (depth, no jump near), the
+    nearest depth of the 3×3 neighbourhood."""
     Ix, Iy = _grad(I1)
     Dx, Dy = _grad(D1)
     valid = D1 > 0
     ok = ndimage.minimum_filter(valid.astype(np.uint8), size=3, mode="nearest").astype(bool)
     ok &= np.maximum(np.abs(Dx), np.abs(Dy)) <= tau_jump
     ok = ndimage.minimum_filter(ok.astype(np.uint8), size=3, mode="nearest").astype(bool)
-    return np.stack([I1, Ix, Iy, D1, Dx, Dy, ok.astype(np.float64)], axis=-1)
+    # the nearest surface around each pixel (a point landing next to it may be hidden by it)
+    near = ndimage.minimum_filter(np.where(valid, D1, np.inf), size=3, mode="nearest")
+    near = np.where(np.isfinite(near), near, 0.0)
+    return np.stack([I1, Ix, Iy, D1, Dx, Dy, ok.astype(np.float64), near], axis=-1)
 
 
-def _evaluate(X, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, want_system, centre=None):
-    """Robust cost per hypothesis (and its Gauss–Newton system) at the motions ``Rt`` (n, 3, 4); the
+def _evaluate(X, I0p, hyp, Rt, ph, stack, intr, sig_i, sig_d, tau, n_hyp, want_system, centre=None):
+    """Robust cost per hypothesis (and its Gauss–Newton system in the 8 unknowns: twist, gain, offset)
+    at the motions ``Rt`` (n, 3, 4) and brightness models ``ph`` (n, 2): :math:`I_1 = a I_0 + b`; the
     system's rotation is about ``centre`` (n, 3) (the segment's moved centroid: it decouples turning
     from moving)."""
     fx, fy, cx, cy = intr
@@ -123,27 +129,28 @@ def _evaluate(X, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, want_syste
     v = fy * Y[:, 1] / Z + cy
     smp, inside = _bilinear(stack, u, v)
     inside &= Y[:, 2] > 1e-3
-    Iw, Ixw, Iyw, Dw, Dxw, Dyw, okw = smp.T
+    Iw, Ixw, Iyw, Dw, Dxw, Dyw, okw, nearw = smp.T
     ok_d = inside & (okw > 0.999)
-    occluded = ok_d & (Dw < Y[:, 2] - tau)
-    r_i = Iw - I0p
+    occluded = inside & (nearw > 0) & (nearw < Y[:, 2] - tau)
+    r_i = Iw - (ph[hyp, 0] * I0p + ph[hyp, 1])
     r_d = Dw - Y[:, 2]
     m_i = inside & ~occluded
     m_d = ok_d & ~occluded & (np.abs(r_d) <= tau)
     x_i = (r_i / sig_i) ** 2
     x_d = (r_d / sig_d) ** 2
-    # cost per pixel: the Charbonnier penalties; moved out of the image or behind a nearer surface:
-    # as much as a poor colour match; on a surface that is clearly not there (depth far off): a poor
-    # depth match; depth unknown at t+1 (holes, edges): no depth term
-    # (a pixel moved out of the image has no term: leaving the image is no evidence against a motion,
-    # but a motion that keeps under half of a segment in view is not believed)
-    pen_i = np.where(m_i, 2.0 * (np.sqrt(1.0 + x_i) - 1.0), _MISS)
+    # cost per pixel: the Charbonnier penalties; on a surface that is clearly not there (depth far
+    # off): a poor depth match; depth unknown at t+1 (holes, edges): no depth term; a pixel moved out
+    # of the image has no term (leaving the image is no evidence against a motion, but a motion that
+    # keeps under half of a segment in view and unhidden is not believed).
+    # A pixel moved behind a nearer surface has no term either: the static background a moving
+    # object covers at t+1 would otherwise pull the background's motion towards uncovering it.
+    pen_i = 2.0 * (np.sqrt(1.0 + x_i) - 1.0)
     off = ok_d & ~occluded & ~m_d
     pen_d = np.where(m_d, 2.0 * (np.sqrt(1.0 + x_d) - 1.0), _MISS)
     n_d = np.bincount(hyp, m_d | off, n_hyp)
-    n_in = np.bincount(hyp, inside, n_hyp)
+    n_in = np.bincount(hyp, m_i, n_hyp)
     count = np.bincount(hyp, minlength=n_hyp).astype(np.float64)
-    cost = (np.bincount(hyp, np.where(inside, pen_i, 0.0), n_hyp) / np.maximum(n_in, 1.0)
+    cost = (np.bincount(hyp, np.where(m_i, pen_i, 0.0), n_hyp) / np.maximum(n_in, 1.0)
             + np.bincount(hyp, np.where(m_d | off, pen_d, 0.0), n_hyp) / np.maximum(n_d, 1.0))
     cost = np.where(n_in < 0.5 * count, cost + 2.0 * _MISS, cost)
     if not want_system:
@@ -159,15 +166,16 @@ def _evaluate(X, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, want_syste
     a_d = rows(np.where(ok_d, Dxw, 0.0), np.where(ok_d, Dyw, 0.0))
     a_d[:, 2] -= 1.0
     arm = Y - centre[hyp]
-    J_i = np.concatenate([a_i, np.cross(arm, a_i)], axis=1)
-    J_d = np.concatenate([a_d, np.cross(arm, a_d)], axis=1)
+    n = X.shape[0]
+    J_i = np.concatenate([a_i, np.cross(arm, a_i), -I0p[:, None], -np.ones((n, 1))], axis=1)
+    J_d = np.concatenate([a_d, np.cross(arm, a_d), np.zeros((n, 2))], axis=1)
     w_i = m_i / np.sqrt(1.0 + x_i) / sig_i**2
     w_d = m_d / np.sqrt(1.0 + x_d) / sig_d**2
-    A = np.zeros((n_hyp, 6, 6))
-    b = np.zeros((n_hyp, 6))
-    for j in range(6):
+    A = np.zeros((n_hyp, 8, 8))
+    b = np.zeros((n_hyp, 8))
+    for j in range(8):
         b[:, j] = np.bincount(hyp, w_i * r_i * J_i[:, j] + w_d * r_d * J_d[:, j], n_hyp)
-        for k in range(j, 6):
+        for k in range(j, 8):
             A[:, j, k] = A[:, k, j] = np.bincount(hyp, w_i * J_i[:, j] * J_i[:, k] + w_d * J_d[:, j] * J_d[:, k],
                                                   n_hyp)
     return cost, A, b
@@ -196,10 +204,11 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
     """
     K = inits.shape[1]
     Rt = inits.reshape(n_seg * K, 3, 4).copy()
-    twist = np.zeros((n_seg * K, 6))  # the motion since the start (to first order)
+    twist = np.zeros((n_seg * K, 8))  # the motion since the start (to first order), gain, offset
+    ph = np.tile([1.0, 0.0], (n_seg * K, 1))  # the brightness model I1 = a I0 + b of each hypothesis
     alive = np.ones(n_seg * K, bool)
     levels = min(o["rigid_levels"], len(pyr))
-    sig_i, sig_d, tau = 2.0 * o["sigma_i"], 2.0 * o["sigma_d"], o["occlusion"]
+    sig_i = 2.0 * o["sigma_i"]
     cost = np.zeros(n_seg * K)
     for lev in range(levels - 1, -1, -1):
         I0, D0, I1, D1, intr = pyr[lev]
@@ -233,7 +242,11 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
         hyp = np.concatenate(hyp)
         Xp = X[pix]
         I0p = I0[ys, xs][pix]
-        stack = _level_data(I1, D1, 3.0 * tau)
+        # the depth term's scale and trust region at each pixel's depth (noise grows with Z^2)
+        sd = depth_sigma(Xp[:, 2], o)
+        sig_d = 2.0 * sd
+        tau = o["occlusion"] + 2.0 * (sd - o["sigma_d"])
+        stack = _level_data(I1, D1, 3.0 * o["occlusion"])
         n_hyp = n_seg * K
         # a hypothesis moves at this level only where its segment has enough pixels here
         n_of = np.bincount(hyp, minlength=n_hyp).astype(np.float64)
@@ -245,7 +258,7 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
         def centre(M):
             return np.einsum("nij,nj->ni", M[:, :, :3], c0) + M[:, :, 3]
 
-        cost, A, b = _evaluate(Xp, I0p, hyp, Rt, stack, intr, sig_i, sig_d, tau, n_hyp, True, centre(Rt))
+        cost, A, b = _evaluate(Xp, I0p, hyp, Rt, ph, stack, intr, sig_i, sig_d, tau, n_hyp, True, centre(Rt))
         for _ in range(iterations):
             good = enough & (np.abs(A).sum(axis=(1, 2)) > 0)
             if not good.any():
@@ -253,19 +266,21 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
             Ag = A[good]
             # a weak pull back to the start: the directions the data do not see (a plane sliding in
             # itself, a uniform cylinder turning about its axis) stay where they started
-            prior = o["rigid_prior"] * np.einsum("nii->ni", Ag)[:, :, None] * np.eye(6)
+            prior = o["rigid_prior"] * np.einsum("nii->ni", Ag)[:, :, None] * np.eye(8)
             bg = b[good] + np.einsum("nij,nj->ni", prior, twist[good])
             Ag = Ag + prior
             # Levenberg–Marquardt: the diagonal scaled up until a step lowers the cost
-            Ag = Ag + (damp[good][:, None, None] * np.eye(6)) * (np.einsum("nii->ni", Ag)[:, :, None] + 1e-9)
+            Ag = Ag + (damp[good][:, None, None] * np.eye(8)) * (np.einsum("nii->ni", Ag)[:, :, None] + 1e-9)
             delta = -np.linalg.solve(Ag, bg[..., None])[..., 0]
             trial = Rt.copy()
-            dR = so3_exp(delta[:, 3:])
+            ph_trial = ph.copy()
+            dR = so3_exp(delta[:, 3:6])
             c = centre(Rt)[good]
             trial[good, :, :3] = dR @ Rt[good, :, :3]
             trial[good, :, 3] = np.einsum("nij,nj->ni", dR, Rt[good, :, 3] - c) + c + delta[:, :3]
-            c_new, A_new, b_new = _evaluate(Xp, I0p, hyp, trial, stack, intr, sig_i, sig_d, tau, n_hyp, True,
-                                            centre(trial))
+            ph_trial[good] += delta[:, 6:]
+            c_new, A_new, b_new = _evaluate(Xp, I0p, hyp, trial, ph_trial, stack, intr, sig_i, sig_d, tau, n_hyp,
+                                            True, centre(trial))
             # the step must lower the cost with the prior's share (E = data + tw'P tw / 2, the mean
             # Charbonnier cost being 2 E / n per pixel)
             tw = twist[good] + delta
@@ -275,6 +290,7 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
             better = np.zeros(n_hyp, bool)
             better[np.nonzero(good)[0][gain >= 0]] = True
             Rt[better] = trial[better]
+            ph[better] = ph_trial[better]
             twist[better] = tw[better[good]]
             cost = np.where(better, c_new, cost)
             A[better], b[better] = A_new[better], b_new[better]
@@ -293,7 +309,45 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
             alive = np.where(moved[:, None], keep, alive.reshape(n_seg, K)).ravel()
     c = np.where(alive, cost, np.inf).reshape(n_seg, K)
     best = np.argmin(c, axis=1)
-    return Rt.reshape(n_seg, K, 3, 4)[np.arange(n_seg), best], c[np.arange(n_seg), best]
+    out = Rt.reshape(n_seg, K, 3, 4)[np.arange(n_seg), best]
+    ph_out = ph.reshape(n_seg, K, 2)[np.arange(n_seg), best]
+    # a segment stays put unless its motion explains the frames clearly better than no motion: a
+    # uniform wall "slides" along itself at no cost, and noise favours some small motion (sampling a
+    # noisy depth map between pixels averages its noise down). The test is made on a coarse level,
+    # whose depth is already an average of 4×4 readings.
+    lev = min(2, len(pyr) - 1)
+    I0, D0, I1, D1, intr = pyr[lev]
+    fx, fy, cx, cy = intr
+    step = 2**lev
+    sl = seg[::step, ::step][: D0.shape[0], : D0.shape[1]]
+    ys, xs = np.nonzero((sl >= 0) & (D0 > 0))
+    z = D0[ys, xs]
+    X = np.stack([(xs - cx) / fx * z, (ys - cy) / fy * z, z], axis=1)
+    sd = depth_sigma(z, o)
+    stack = _level_data(I1, D1, 3.0 * o["occlusion"])
+    still = np.zeros((n_seg, 3, 4))
+    still[:, :, :3] = np.eye(3)
+    sid = sl[ys, xs]
+    args = (X, I0[ys, xs], sid)
+    rest = (stack, intr, sig_i, 2.0 * sd, o["occlusion"] + 2.0 * (sd - o["sigma_d"]), n_seg, False,
+            np.zeros((n_seg, 3)))
+    # no motion with its own brightness model (least squares on the pixels in view)
+    i1 = _bilinear(stack[..., :1], X[:, 0] * fx / z + cx, X[:, 1] * fy / z + cy)[0][:, 0]  # I1(x)
+    i0 = I0[ys, xs]
+    sw = np.bincount(sid, minlength=n_seg).astype(np.float64)
+    s0, s00 = np.bincount(sid, i0, n_seg), np.bincount(sid, i0 * i0, n_seg)
+    s1, s01 = np.bincount(sid, i1, n_seg), np.bincount(sid, i0 * i1, n_seg)
+    det = sw * s00 - s0 * s0
+    ok = det > 1e-9 * np.maximum(sw * s00, 1e-30)
+    ph_still = np.tile([1.0, 0.0], (n_seg, 1))
+    ph_still[ok, 0] = (sw * s01 - s0 * s1)[ok] / det[ok]
+    ph_still[ok, 1] = (s00 * s1 - s0 * s01)[ok] / det[ok]
+    ph_still[~ok, 1] = np.where(sw > 0, (s1 - s0) / np.maximum(sw, 1.0), 0.0)[~ok]
+    c_still, _, _ = _evaluate(*args, still, ph_still, *rest)
+    c_best, _, _ = _evaluate(*args, out, ph_out, *rest)
+    stay = (c_best >= (1.0 - o["rigid_still"]) * c_still) & (np.bincount(sl[ys, xs], minlength=n_seg) > 0)
+    out[stay] = still[stay]
+    return out, np.where(stay, c_still, c_best)
 
 
 def rigid_field(match, I0, D0, I1, D1, pyr, intr, o):
@@ -310,7 +364,7 @@ def rigid_field(match, I0, D0, I1, D1, pyr, intr, o):
     """
     H, W = D0.shape
     fx, fy, cx, cy = intr
-    sig = np.sqrt(o["sigma_d"] ** 2 + (o["sigma_d_z2"] * D0 * D0) ** 2)
+    sig = depth_sigma(D0, o)
     tau = o["occlusion"] + 2.0 * (sig - o["sigma_d"])
     seg, n = depth_segments(D0, tau, o["rigid_min_pixels"])
     out = dict(match)
@@ -368,7 +422,10 @@ def rigid_field(match, I0, D0, I1, D1, pyr, intr, o):
     margin = np.where(conf, 0.0, o["rigid_margin"] * typical)
     inside = (u >= 0) & (v >= 0) & (u <= W - 1) & (v <= H - 1)
     # a pixel the rigid motion takes out of the image has no cost to compare: it moves with its segment
-    take = on & ((cost_r <= match["cost"] + margin) | ~inside)
+    # (and where both agree in the image, the rigid motion: its depth change is that of the whole
+    # segment, not the difference of two noisy depth readings)
+    agree = np.linalg.norm(flow_r - match["flow"], axis=-1) <= o["rigid_agree_px"]
+    take = on & ((cost_r <= match["cost"] + margin) | ~inside | agree)
     # behind a nearer surface: every valid depth around the target clearly in front of the point
     ui = np.clip(np.floor(u).astype(np.intp), 0, W - 2)
     vi = np.clip(np.floor(v).astype(np.intp), 0, H - 2)

@@ -1,11 +1,16 @@
-r"""Dense scene flow from two RGB-D frames: a variational estimator in the spirit of PD-Flow.
+r"""Dense scene flow from two RGB-D frames: a variational estimator in the spirit of PD-Flow, started
+from matches.
 
 :func:`rgbd_scene_flow` estimates the 3-D velocity of every pixel of frame :math:`t` from the colour
 (grey) images *and* the depth maps of two frames, with no correspondences given: the syllabus'
 brightness constancy and depth constancy (section 2), tied to the 3-D motion by the projection
 Jacobian, plus a smoothness term (section 3). The design follows PD-Flow (Jaimez, Souiai,
 González-Jiménez and Cremers, ICRA 2015): photometric and geometric data terms, robust penalties,
-smoothing weighted down across depth edges, coarse-to-fine with warping.
+smoothing weighted down across depth edges, warping. A linearised data term only sees a displacement
+of a pixel or two, and next to a silhouette it can pull a point onto the surface behind; so, as in
+large-displacement variational flow (Brox and Malik, LDOF, 2011), the refinement starts from, and is
+tied to, a field of *matches* found by search (:mod:`flowtrack._rgbd_match`, the rigid motions of the
+depth segments :mod:`flowtrack._rgbd_segments`).
 
 The unknown
 -----------
@@ -22,14 +27,22 @@ With :math:`I_0, I_1` the grey images and :math:`D_1` the depth map at :math:`t 
 .. math::
 
     E(s) = \sum_p m_p \Big[\rho_I\Big(\frac{I_1(\pi(X_p + s_p)) - I_0(p)}{\sigma_I}\Big)
-           + \rho_D\Big(\frac{D_1(\pi(X_p + s_p)) - (Z_p + s_{p,z})}{\sigma_D}\Big)\Big]
+           + \rho_D\Big(\frac{D_1(\pi(X_p + s_p)) - (Z_p + s_{p,z})}{\sigma_D(Z_p)}\Big)\Big]
+           + \sum_p c_p\,\rho_M\big(\lVert \Sigma_p^{-1/2}(s_p - \hat s_p)\rVert\big)
            + \lambda \sum_{(p,q)\in\mathcal E} w_{pq}\,
              \rho_S\Big(\frac{\lVert s_p - s_q\rVert}{\sigma_S}\Big),
 
-- the photometric term is brightness constancy :math:`I_1(x + u) = I_0(x)`;
+- the photometric term is brightness constancy :math:`I_1(x + u) = I_0(x)` (after the brightness
+  change between the frames is removed, see below);
 - the geometric term is depth constancy in its corrected form :math:`D_1(x + u) = D_0(x) + v_Z\,\Delta t`
   (range flow: the depth seen at the new image position is the old depth plus the motion along the
-  optical axis);
+  optical axis), its scale the depth noise of a disparity-based sensor,
+  :math:`\sigma_D(Z) = \sqrt{\sigma_d^2 + (\sigma_{d2} Z^2)^2}` (``sigma_d``, ``sigma_d_z2``);
+- the match term ties :math:`s_p` to the matched displacement :math:`\hat s_p` (LDOF's matching
+  term), :math:`\Sigma_p = \mathrm{diag}(\sigma_\perp^2, \sigma_\perp^2, 2\sigma_D^2)` with
+  :math:`\sigma_\perp = \sigma_m Z_p / f` (a match is good to ``sigma_m`` pixels across the ray and to
+  the noise of two depths along it), :math:`c_p` = ``match_weight`` where the pixel is matched, 0
+  where it is not, ``hidden_weight`` where it is hidden (below);
 - :math:`\mathcal E` are the 4-neighbour edges, and :math:`w_{pq} = 1 / (1 + \lVert X_p - X_q\rVert^2 /
   d_{pq}^2)` weighs smoothing down across depth edges (an inverse 3-D neighbour distance, PD-Flow's
   choice in a smooth form), :math:`d_{pq} = \kappa\,\bar Z_{pq} / f + 2\sigma_D` the distance expected
@@ -41,7 +54,39 @@ With :math:`I_0, I_1` the grey images and :math:`D_1` the depth map at :math:`t 
   position outside the image, and, for the geometric term, no valid depth under
   :math:`\pi(X_p + s_p)` at :math:`t + \Delta t` or a depth edge there. A pixel whose warped depth is
   clearly *in front* of the moved point (:math:`D_1 < Z + s_z - \tau`, the point is hidden at
-  :math:`t + \Delta t`) is occluded: both data terms are off there.
+  :math:`t + \Delta t`) is occluded: both data terms are off there. With ``truncate_depth`` the
+  geometric term is also off where the warped depth is clearly *behind* the moved point
+  (:math:`D_1 > Z + s_z + \tau`): the point cannot be there, and a depth term would drag it onto the
+  background — the silhouette failure of a linearised depth term. :math:`\tau` = ``occlusion`` plus
+  twice the growth of :math:`\sigma_D` with depth. A pixel the matching found *hidden* at
+  :math:`t + \Delta t` (or leaving the image) has no data term at all.
+
+The start: matches
+------------------
+``init="matches"`` (the default; :mod:`flowtrack._rgbd_match`): OpenCV's DIS optical flow and a
+coarse exhaustive block search on the grey and log-depth images, both directions, the candidate with
+the lowest matching cost per pixel; a pixel is *matched* where that cost is low, its neighbourhood
+textured, the forward-backward check passes and it is not on a depth edge; it is lifted to 3-D with
+the depth at :math:`t + \Delta t` read at :math:`x + u` (of the four pixels around it, the one nearest
+its own depth). Then every depth-connected segment of frame :math:`t` is aligned rigidly (six
+parameters, robust photometric and geometric residuals, Gauss–Newton coarse to fine,
+:mod:`flowtrack._rgbd_segments`): a pixel takes its segment's rigid motion where that fits it at least
+about as well as its own match — the motion of a nearly uniform or turning face, which no pixel can
+match alone. Every pixel still without a match takes the displacement of the geodesically nearest
+matched pixel, the path length counting depth jumps (so a hidden pixel moves with its own surface).
+That field starts the refinement on the ``levels`` finest pyramid levels; the match term keeps the
+refinement near it. ``init="zero"`` is the classic coarse-to-fine scheme from zero displacement on
+every level that fits (large motions and the silhouette failure above are then out of reach); ``init``
+may also be an (H, W, 3) array of velocities (NaN: unknown) used as the match.
+
+Brightness changes
+------------------
+The gain and offset between the frames, :math:`I_1(x + u) \approx a I_0(x) + b`, are fitted robustly
+on the pixels matched with a low cost (the matching cost itself subtracts local means and does not
+see a global change), and :math:`I_1` is replaced by :math:`(I_1 - b)/a`. With ``structure_sigma``
+:math:`> 0` both images are also replaced by their texture, :math:`I - G_\sigma * I` (the
+structure-texture split of Wedel et al., 2009): the shading of a turning face changes, its texture
+does not.
 
 Linearisation
 -------------
@@ -68,11 +113,12 @@ scheme of Brox et al., 2004): with the weights
 :math:`c = \rho'(x)/(2x\sigma^2) = 1/(\sigma^2\sqrt{1 + x^2})` of the current iterate, a quadratic
 majoriser of :math:`E` is minimised, which is the sparse symmetric positive definite system
 
-.. math::  (N_p + \lambda \textstyle\sum_q W_{pq})\, s_p - \lambda \sum_q W_{pq}\, s_q
-           = N_p s^0_p - g_p \quad \text{for every pixel } p, \qquad
+.. math::  (N_p + C_p + \lambda \textstyle\sum_q W_{pq})\, s_p - \lambda \sum_q W_{pq}\, s_q
+           = N_p s^0_p - g_p + C_p \hat s_p \quad \text{for every pixel } p, \qquad
            g_p = c_I r_I a_I + c_D r_D a_D,
 
-:math:`W_{pq} = w_{pq} c_{S,pq}` — an edge-weighted grid Laplacian
+:math:`C_p` the (diagonal) reweighted match term, :math:`W_{pq} = w_{pq} c_{S,pq}` — an edge-weighted
+grid Laplacian
 (:func:`flowtrack.variational.grid_laplacian`) coupling 3×3 blocks. It is solved by conjugate
 gradients preconditioned with the 3×3 block diagonal (each block inverted in closed form), warm-started
 from the current iterate, ``cg_iterations`` iterations per reweighting. (Red-black Gauss–Seidel, the
@@ -82,7 +128,8 @@ system stiff, :math:`\lambda/\sigma_S^2 \gg c_I |a_I|^2`, and Gauss–Seidel nee
 moved at the coarse levels — where CG needs :math:`O(\sqrt\kappa)`.)
 
 Coarse-to-fine: the images are blurred and halved (depth: the mean of the valid pixels of each 2×2
-block) until the short side would drop below ``min_size``; at level :math:`\ell` the camera is
+block), ``levels`` levels (from zero: until the short side would drop below ``min_size``); the match
+field is carried down as confidence-weighted block means. At level :math:`\ell` the camera is
 :math:`f/2^\ell,\ (c + 1/2)/2^\ell - 1/2`. The displacement is in metres, so it is carried from level
 to level by bilinear interpolation without rescaling. Each level runs ``warps`` warps (images and
 depth resampled at :math:`\pi(X + s^0)` — the exact projection, not the linearised one — then
@@ -119,7 +166,7 @@ import numpy as np
 from scipy import ndimage
 
 from ._validation import nonnegative, positive, positive_int
-from ._rgbd_energy import Linearised, pcg
+from ._rgbd_energy import Linearised, depth_sigma, pcg
 from ._rgbd_match import geodesic_fill, match_field
 from ._rgbd_segments import rigid_field
 from .camera import PinholeCamera, check_camera
@@ -137,19 +184,23 @@ PENALTIES = ("charbonnier", "quadratic")
 
 #: weight of the smoothness edges that touch a pixel without depth at t
 _HOLE_EDGE_WEIGHT = 0.05
+#: pyramid levels refined from a match (``levels=None``): the match is good to a pixel or two
+_MATCHED_LEVELS = 2
+#: images with a shorter side are refined from zero (OpenCV's DIS needs 12 px, the block search more)
+_MIN_MATCH_SIZE = 16
 
 _DEFAULTS = {
-    "lam": 0.05,
+    "lam": None,
     "sigma_i": 0.02,
     "sigma_d": 0.004,
-    "sigma_d_z2": 0.0015,
-    "sigma_s": 0.001,
+    "sigma_d_z2": None,
+    "sigma_s": None,
     "edge_scale": 3.0,
     "occlusion": 0.02,
     "penalty": "charbonnier",
-    "levels": 2,
+    "levels": None,
     "min_size": 6,
-    "warps": 3,
+    "warps": None,
     "irls": 2,
     "cg_iterations": 15,
     "blur": 0.8,
@@ -158,7 +209,8 @@ _DEFAULTS = {
     "init": "matches",
     "match_weight": 1.0,
     "sigma_m": 1.0,
-    "truncate_depth": True,
+    "truncate_depth": None,
+    "depth_filter": None,
     "fill_depth_scale": 0.005,
     "fill_grey_scale": 1.0,
     "hidden_weight": 0.1,
@@ -168,6 +220,8 @@ _DEFAULTS = {
     "rigid_margin": 0.5,
     "rigid_agree": 1e9,
     "rigid_prior": 1e-2,
+    "rigid_still": 0.2,
+    "rigid_agree_px": 0.5,
     "rigid_levels": 4,
     "rigid_min_pixels": 40,
     "rigid_max_pixels": 1500,
@@ -184,6 +238,14 @@ _DEFAULTS = {
     "backend": "auto",
     "return_info": False,
 }
+
+#: defaults that depend on the start: from matches they were chosen on the training split of the
+#: held-out protocol (benchmarks/_evalscenes.py); from zero they are the classic coarse-to-fine
+#: estimator's, chosen on flowtrack.synth scenes
+_FROM_MATCHES = {"lam": 0.2, "sigma_s": 0.0005, "warps": 2, "truncate_depth": True, "sigma_d_z2": 0.0015,
+                 "depth_filter": True}
+_FROM_ZERO = {"lam": 0.05, "sigma_s": 0.001, "warps": 3, "truncate_depth": False, "sigma_d_z2": 0.0,
+              "depth_filter": False}
 
 BACKENDS = ("auto", "numba", "numpy")
 INITS = ("zero", "matches")
@@ -400,6 +462,11 @@ def _options(options):
         raise TypeError(f"rgbd_scene_flow got unknown option(s) {sorted(unknown)}; "
                         f"known: {sorted(_DEFAULTS)}")
     o = {**_DEFAULTS, **options}
+    # the defaults that depend on the start (None: not given)
+    by_start = _FROM_ZERO if isinstance(o["init"], str) and o["init"] == "zero" else _FROM_MATCHES
+    for k, v in by_start.items():
+        if o[k] is None:
+            o[k] = v
     # lam = 0 leaves every pixel's aperture null space (rank-2 data term) unresolved: a singular system
     o["lam"] = positive(o["lam"], "lam")
     for k in ("sigma_i", "sigma_d", "sigma_s", "edge_scale", "occlusion"):
@@ -423,7 +490,7 @@ def _options(options):
     o["min_size"] = positive_int(o["min_size"], "min_size", minimum=2)
     for k in ("warps", "irls", "cg_iterations"):
         o[k] = positive_int(o[k], k)
-    for k in ("use_depth", "use_color", "return_info", "truncate_depth", "rigid"):
+    for k in ("use_depth", "use_color", "return_info", "truncate_depth", "rigid", "depth_filter"):
         if not isinstance(o[k], (bool, np.bool_)):
             raise TypeError(f"{k} must be a bool, got {type(o[k]).__name__}")
     if o["backend"] not in BACKENDS:
@@ -498,11 +565,24 @@ def _match_pyramid(target, weight, hidden, n):
     return out
 
 
-def _depth_sigma(Z, o):
-    """The depth-noise scale per pixel: sqrt(sigma_d^2 + (sigma_d_z2 Z^2)^2) (m)."""
-    if o["sigma_d_z2"] == 0.0:
-        return o["sigma_d"]
-    return np.sqrt(o["sigma_d"] ** 2 + (o["sigma_d_z2"] * Z * Z) ** 2)
+def _filter_depth(D, o):
+    """Each valid depth replaced by the mean of the valid depths of its 3×3 neighbourhood on the same
+    surface (within the occlusion threshold of it). The noise of a single reading would otherwise
+    favour sub-pixel shifts of a static surface: sampling a noisy depth map between pixels averages
+    the noise down, so a depth term prefers to land between them."""
+    valid = D > 0
+    tau = o["occlusion"] + 2.0 * (depth_sigma(D, o) - o["sigma_d"])
+    H, W = D.shape
+    P = np.pad(D, 1)
+    num = np.zeros((H, W))
+    den = np.zeros((H, W))
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            q = P[dy:dy + H, dx:dx + W]
+            w = (q > 0) & (np.abs(q - D) <= tau)
+            num += np.where(w, q, 0.0)
+            den += w
+    return np.where(valid, num / np.maximum(den, 1.0), 0.0)
 
 
 def _edge_weights(X, valid, intr, sigma_d, edge_scale):
@@ -532,7 +612,7 @@ def _level(I0, D0, I1, D1, intr, s, o, match=None):
     X = np.stack([(xx - cx) / fx * Z, (yy - cy) / fy * Z, Z], axis=-1)
     wv, wh = _edge_weights(X, valid0, intr, o["sigma_d"], o["edge_scale"])
     # depth noise of a disparity-based sensor grows with Z^2
-    sig_d = _depth_sigma(Z, o)
+    sig_d = depth_sigma(Z, o)
     tau_occ = o["occlusion"] + 2.0 * (sig_d - o["sigma_d"])
     sig_m = None
     if m_t is not None:
@@ -606,13 +686,16 @@ def _estimate(I0, D0, I1, D1, cam, o, match):
     confidence in [0, 1] (0: no match), "hidden": (H, W) bool (the point is hidden at t+1: no data
     term, the displacement of the nearest matched pixel of its surface)}``; returns (s, problem, levels)."""
     H, W = I0.shape
-    n = _n_levels(H, W, o["min_size"], o["levels"])
+    levels = o["levels"]
+    if levels is None and match is not None:
+        levels = _MATCHED_LEVELS
+    n = _n_levels(H, W, o["min_size"], levels)
     pyr = _pyramid(I0, D0, I1, D1, cam, n)
     mpyr = [None] * n
     s = None
     if match is not None:
         known = (match["conf"] > 0) & ~match["hidden"]
-        sig_d = _depth_sigma(D0, o)
+        sig_d = depth_sigma(D0, o)
         fill, dist = geodesic_fill(match["m"], known, D0, I0,
                                    depth_scale=o["fill_depth_scale"] + 2.0 * (sig_d - o["sigma_d"]),
                                    grey_scale=o["fill_grey_scale"], edge_jump=o["occlusion"],
@@ -713,13 +796,12 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     if o["blur"] > 0:
         I0 = ndimage.gaussian_filter(I0, o["blur"], mode="nearest")
         I1 = ndimage.gaussian_filter(I1, o["blur"], mode="nearest")
-    H, W = shape
-    n = _n_levels(H, W, o["min_size"], o["levels"])
-    pyr = _pyramid(I0, D0, I1, D1, cam, n)
+    if o["depth_filter"]:
+        D0, D1 = _filter_depth(D0, o), _filter_depth(D1, o)
     match = None
     if not isinstance(o["init"], str):
         match = _initial_match(o["init"], shape, dt)
-    elif o["init"] == "matches":
+    elif o["init"] == "matches" and min(shape) >= _MIN_MATCH_SIZE:
         K = None if o["backend"] == "numpy" else _kernels()
         intr = (cam.fx, cam.fy, cam.cx, cam.cy)
         match = match_field(I0, D0, I1, D1, intr, o, K)
