@@ -15,7 +15,7 @@ __all__ = ["Linearised", "depth_sigma", "pcg", "rho", "rho_weight"]
 
 
 def depth_sigma(Z, o):
-    """The depth-noise scale (m) at depth ``Z``: :math:`\sqrt{\sigma_d^2 + (\sigma_{d2} Z^2)^2}` (the noise
+    r"""The depth-noise scale (m) at depth ``Z``: :math:`\sqrt{\sigma_d^2 + (\sigma_{d2} Z^2)^2}` (the noise
     of a disparity-based sensor grows with :math:`Z^2`); ``o`` holds ``sigma_d`` and ``sigma_d_z2``."""
     if o["sigma_d_z2"] == 0.0:
         return o["sigma_d"]

@@ -1,4 +1,4 @@
-r"""The match-based initial field of :func:`flowtrack.rgbd_flow.rgbd_scene_flow`.
+r"""The match-based start of :func:`flowtrack.rgbd_flow.rgbd_scene_flow`.
 
 Coarse to fine from zero cannot follow a displacement of more than about two pixels at its coarsest
 level, and a linearised data term next to a silhouette pulls a point onto the surface behind it. As in
@@ -6,30 +6,39 @@ large-displacement variational flow (Brox and Malik, LDOF, 2011) the variational
 starts from, and is tied to, a field of *matches*: displacements found by searching, not by
 linearising.
 
-1. **Optical-flow candidates.** OpenCV's DIS optical flow (Kroeger et al., 2016) on the grey images;
-   an exhaustive block search on a coarse level of both the grey and the log-depth images (every
-   displacement of up to ``search_radius`` coarse pixels, mean-normalised grey differences plus
-   truncated depth differences summed over a window: it finds large motions of textured and of
-   nearly uniform objects, whose depth outline moves with them); DIS again, started from that field.
-2. **Selection.** Per pixel, the candidate with the lowest matching cost: the mean-normalised grey
-   difference (insensitive to a change of brightness between the frames) plus the truncated depth
-   difference, summed over a ``match_window`` window.
-3. **Confidence.** A pixel is *matched* when its cost is low, its neighbourhood has texture (the
-   smaller eigenvalue of the structure tensor) and it is not on a depth edge (a silhouette or a
-   flying pixel, whose depth belongs to neither surface). A pixel whose match lands on a surface
-   clearly in front of it with a poor cost is *hidden* at t+1.
-4. **Lifting.** A matched pixel's displacement is :math:`X_1 - X_0` with :math:`X_1` back-projected at
-   the matched position :math:`x + u` with the depth of frame t+1 read there (of the four pixels
-   around :math:`x + u`, the valid depth nearest the point's own, so that a match next to a
-   silhouette does not read the other surface).
-5. **Fill.** Every pixel that is not matched takes the displacement of the geodesically nearest
-   matched pixel, the path length counting depth jumps (:func:`geodesic_fill`): a pixel of a
-   uniform face or a hidden pixel takes the motion of its own surface, not of the one beside it
-   (EpicFlow's edge-aware interpolation, Revaud et al. 2015, with depth edges).
-
-The photometric gain and offset between the frames are fitted (robustly) on the matched pixels,
-:math:`I_1(x + u) \approx a I_0(x) + b`, so that the variational brightness constancy compares
-:math:`(I_1 - b)/a` with :math:`I_0`.
+1. **Optical-flow candidates** (both directions, t to t+1 and back). OpenCV's DIS optical flow
+   (Kroeger et al., 2016, preset medium) on the grey images; and DIS again, started from an
+   exhaustive block search on a coarse level (about 80 px wide) of both the grey and the log-depth
+   images: every displacement of up to ``search_radius`` px, mean-normalised grey differences plus
+   ``match_depth_weight`` times truncated (``match_depth_trunc``) log-depth differences summed over
+   a 5×5 window. The block search finds large motions, of nearly uniform objects too (their depth
+   outline moves with them); DIS refines its whole coarse pixels.
+2. **Selection.** Per pixel, the candidate with the lowest matching cost (:func:`pixel_cost`: the
+   same two differences summed over a ``match_window`` window, the grey one insensitive to a change
+   of brightness between the frames); DIS from zero unless another candidate is better by
+   ``match_margin`` (in a uniform region the costs differ by noise only).
+3. **Confidence.** The thresholds are relative to the image's *typical* cost (its median, at least
+   half a grey level). A pixel is *matched* when its cost is under ``match_cost`` typical costs, its
+   neighbourhood has texture (the smaller eigenvalue of the structure tensor over the window at least
+   ``match_texture`` typical costs squared), it is not next to a depth jump (a silhouette or a flying
+   pixel, whose depth belongs to neither surface), its depth change is plausible (``match_max_dz``),
+   and the backward flow brings it back to within ``match_fb`` px — or its cost is under
+   ``match_sure`` typical costs (the backward flow of a surface cut by the image border is often
+   lost). A pixel whose match leaves the image, or lands next to a surface clearly in front of it
+   with a poor cost, is *hidden* at t+1.
+4. **Lifting.** A pixel's displacement is :math:`X_1 - X_0` with :math:`X_1` back-projected at the
+   matched position :math:`x + u` with the depth of frame t+1 read there: of the four pixels around
+   :math:`x + u`, the valid depth nearest the point's own (a match next to a silhouette does not read
+   the other surface).
+5. **Brightness.** :math:`I_1(x + u) \approx a I_0(x) + b`, fitted by least squares with three robust
+   refits on the better half of the matched pixels.
+6. **Fill** (:func:`geodesic_fill`, used by :func:`flowtrack.rgbd_flow.rgbd_scene_flow` after the
+   rigid segments of :mod:`flowtrack._rgbd_segments`). Every pixel that is not matched takes the
+   displacement of the geodesically nearest matched pixel, the path length counting depth jumps
+   (``fill_depth_scale``) and grey-level jumps (``fill_grey_scale``): a pixel of a uniform face or a
+   hidden pixel takes the motion of its own surface, not of the one beside it (EpicFlow's edge-aware
+   interpolation, Revaud et al. 2015, with depth edges). A pixel farther than ``fill_reach`` from
+   every matched pixel (a surface without any) keeps its own match.
 """
 
 from __future__ import annotations
@@ -276,7 +285,6 @@ def match_field(I0, D0, I1, D1, intr, o, kernels=None):
     L0, V0 = _log_depth(D0)
     L1, V1 = _log_depth(D1)
     win = o["match_window"]
-    dw, dtr = o["match_depth_weight"], o["match_depth_trunc"]
     flow, cost, cands, costs = _one_way(cv2, I0f, L0, V0, I1f, L1, V1, o)
     back, _, _, _ = _one_way(cv2, I1f, L1, V1, I0f, L0, V0, o)
     # forward-backward consistency: the backward flow at x + u leads back to x

@@ -7,18 +7,37 @@ included, fix a rigid motion :math:`T = (R, t)` (six numbers) that a per-pixel s
 As in piecewise-rigid RGB-D scene flow (Jaimez et al., "Motion cooperation", 3DV 2015) and in direct
 RGB-D odometry (Kerl, Sturm and Cremers, 2013):
 
-1. **Segments.** The pixels of frame t with depth are split into the connected components of the
-   4-neighbour graph whose edges join pixels less than a depth jump apart (:func:`depth_segments`).
-2. **Direct alignment.** For every segment :math:`S` and every starting motion offered for it,
+1. **Segments** (:func:`depth_segments`). The pixels of frame t with depth are split into the
+   connected components of the 4-neighbour graph whose edges join pixels less than a depth jump
+   apart; components under ``rigid_min_pixels`` pixels are left out.
+2. **Direct alignment** (:func:`segment_motions`). For every segment :math:`S` and every starting
+   motion offered for it (no motion, the median of its matches, the median of its confident ones),
 
-   .. math::  E_S(T) = \sum_{p \in S} \rho\Big(\frac{I_1(\pi(T X_p)) - I_0(p)}{\sigma_I}\Big)
+   .. math::  E_S(T, a, b) = \sum_{p \in S} \rho\Big(\frac{I_1(\pi(T X_p)) - a I_0(p) - b}{\sigma_I}\Big)
               + \rho\Big(\frac{D_1(\pi(T X_p)) - (T X_p)_z}{\sigma_D}\Big)
 
-   is minimised by Gauss–Newton on the twist of :math:`T` (left increments, the rows
-   :math:`(a^\top, (Y \times a)^\top)` with :math:`a` the per-pixel rows of
-   :mod:`flowtrack.rgbd_flow` and :math:`Y = T X_p`), robust weights (Charbonnier; a depth residual
-   beyond the occlusion threshold is dropped: the point is hidden or off its surface), coarse to
-   fine; the start with the lowest cost at the coarsest level goes on (:func:`segment_motions`).
+   (an affine brightness model :math:`a, b` per segment, as in direct sparse odometry, Engel et al.
+   2017: a shaded face changes its brightness when it turns) is minimised by Levenberg–Marquardt on
+   the twist of :math:`T` about the segment's centroid (left increments; the rows
+   :math:`(a^\top, ((Y - c) \times a)^\top)` with :math:`a` the per-pixel rows of
+   :mod:`flowtrack.rgbd_flow` and :math:`Y = T X_p`), robust (Charbonnier) weights, coarse to fine
+   from ``rigid_levels`` levels up; a step is kept only if it lowers the cost plus a weak pull back
+   to the start (``rigid_prior`` times the diagonal of the normal matrix: the directions the data do
+   not see stay where they started). A pixel moved out of the image or behind a nearer surface has
+   no term (leaving the image, or being covered, is no evidence against a motion); a depth residual
+   beyond the occlusion threshold costs as much as a poor match. At most ``rigid_max_pixels``
+   pixels per segment and level (an even subsample); the start with the lowest cost at the first
+   level where the segment is large enough goes on.
+3. **Still or moving.** A segment keeps *no* motion unless its motion lowers the cost (on a coarse
+   level, whose depth averages 4×4 readings) by more than the share ``rigid_still``: a uniform wall
+   slides along itself at no cost, and sampling a noisy depth map between pixels averages the noise
+   down, which any small motion of a static surface profits from.
+4. **Per pixel** (:func:`rigid_field`). A pixel of a segment takes the segment's rigid displacement
+   where its matching cost is at most its own match's (plus ``rigid_margin`` times the image's
+   typical cost for a pixel without a confident match), where both agree to ``rigid_agree_px``
+   pixels in the image, or where the rigid motion takes it out of the image; a segment whose motion
+   moves a pixel more than 1.5 ``search_radius`` or changes its depth by more than ``match_max_dz``
+   is not believed.
 """
 
 from __future__ import annotations
@@ -141,7 +160,7 @@ def _evaluate(X, I0p, hyp, Rt, ph, stack, intr, sig_i, sig_d, tau, n_hyp, want_s
     # cost per pixel: the Charbonnier penalties; on a surface that is clearly not there (depth far
     # off): a poor depth match; depth unknown at t+1 (holes, edges): no depth term; a pixel moved out
     # of the image has no term (leaving the image is no evidence against a motion, but a motion that
-    # keeps under half of a segment in view and unhidden is not believed).
+    # keeps under a fifth of a segment in view and unhidden is not believed).
     # A pixel moved behind a nearer surface has no term either: the static background a moving
     # object covers at t+1 would otherwise pull the background's motion towards uncovering it.
     pen_i = 2.0 * (np.sqrt(1.0 + x_i) - 1.0)
@@ -152,7 +171,7 @@ def _evaluate(X, I0p, hyp, Rt, ph, stack, intr, sig_i, sig_d, tau, n_hyp, want_s
     count = np.bincount(hyp, minlength=n_hyp).astype(np.float64)
     cost = (np.bincount(hyp, np.where(m_i, pen_i, 0.0), n_hyp) / np.maximum(n_in, 1.0)
             + np.bincount(hyp, np.where(m_d | off, pen_d, 0.0), n_hyp) / np.maximum(n_d, 1.0))
-    cost = np.where(n_in < 0.5 * count, cost + 2.0 * _MISS, cost)
+    cost = np.where(n_in < 0.2 * count, cost + 2.0 * _MISS, cost)
     if not want_system:
         return cost, None, None
     iz = 1.0 / Z
@@ -176,8 +195,8 @@ def _evaluate(X, I0p, hyp, Rt, ph, stack, intr, sig_i, sig_d, tau, n_hyp, want_s
     for j in range(8):
         b[:, j] = np.bincount(hyp, w_i * r_i * J_i[:, j] + w_d * r_d * J_d[:, j], n_hyp)
         for k in range(j, 8):
-            A[:, j, k] = A[:, k, j] = np.bincount(hyp, w_i * J_i[:, j] * J_i[:, k] + w_d * J_d[:, j] * J_d[:, k],
-                                                  n_hyp)
+            A[:, j, k] = A[:, k, j] = np.bincount(
+                hyp, w_i * J_i[:, j] * J_i[:, k] + w_d * J_d[:, j] * J_d[:, k], n_hyp)
     return cost, A, b
 
 
@@ -253,9 +272,10 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
         enough = alive & (n_of >= o["rigid_min_pixels"])
         damp = np.full(n_hyp, 1e-4)
         # each segment's centroid at t: its rotations are about it
-        c0 = np.stack([np.bincount(hyp, Xp[:, k], n_hyp) for k in range(3)], axis=1) / np.maximum(n_of, 1.0)[:, None]
+        c0 = np.stack([np.bincount(hyp, Xp[:, k], n_hyp) for k in range(3)], axis=1)
+        c0 /= np.maximum(n_of, 1.0)[:, None]
 
-        def centre(M):
+        def centre(M, c0=c0):
             return np.einsum("nij,nj->ni", M[:, :, :3], c0) + M[:, :, 3]
 
         cost, A, b = _evaluate(Xp, I0p, hyp, Rt, ph, stack, intr, sig_i, sig_d, tau, n_hyp, True, centre(Rt))
@@ -279,8 +299,8 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
             trial[good, :, :3] = dR @ Rt[good, :, :3]
             trial[good, :, 3] = np.einsum("nij,nj->ni", dR, Rt[good, :, 3] - c) + c + delta[:, :3]
             ph_trial[good] += delta[:, 6:]
-            c_new, A_new, b_new = _evaluate(Xp, I0p, hyp, trial, ph_trial, stack, intr, sig_i, sig_d, tau, n_hyp,
-                                            True, centre(trial))
+            c_new, A_new, b_new = _evaluate(Xp, I0p, hyp, trial, ph_trial, stack, intr, sig_i, sig_d, tau,
+                                            n_hyp, True, centre(trial))
             # the step must lower the cost with the prior's share (E = data + tw'P tw / 2, the mean
             # Charbonnier cost being 2 E / n per pixel)
             tw = twist[good] + delta
@@ -345,7 +365,9 @@ def segment_motions(pyr, seg, n_seg, inits, o, iterations=8):
     ph_still[~ok, 1] = np.where(sw > 0, (s1 - s0) / np.maximum(sw, 1.0), 0.0)[~ok]
     c_still, _, _ = _evaluate(*args, still, ph_still, *rest)
     c_best, _, _ = _evaluate(*args, out, ph_out, *rest)
-    stay = (c_best >= (1.0 - o["rigid_still"]) * c_still) & (np.bincount(sl[ys, xs], minlength=n_seg) > 0)
+    # (a segment too small at that level to compare keeps its motion)
+    stay = (c_best >= (1.0 - o["rigid_still"]) * c_still) & (
+        np.bincount(sid, minlength=n_seg) >= o["rigid_min_pixels"])
     out[stay] = still[stay]
     return out, np.where(stay, c_still, c_best)
 
@@ -402,18 +424,8 @@ def rigid_field(match, I0, D0, I1, D1, pyr, intr, o):
     speed = np.where(on, np.linalg.norm(flow_r, axis=-1), 0.0)
     dz = np.where(on, np.abs(s_r[..., 2]), 0.0)
     wild = np.zeros(n + 1, bool)
-    np.logical_or.at(wild, np.where(on, seg, n), (speed > 1.5 * o["search_radius"]) | (dz > o["match_max_dz"]))
-    # ... nor one that its own matched pixels contradict (the median disagreement of a segment with
-    # at least a few matched pixels must be small: a wall and a floor slide along each other unseen)
-    gap = np.where(on & conf, np.linalg.norm(flow_r - match["flow"], axis=-1), np.nan)
-    sid = np.where(on & conf, seg, n)
-    cnt = np.bincount(sid.ravel(), minlength=n + 1)
-    order = np.argsort(sid.ravel(), kind="stable")
-    gs = gap.ravel()[order]
-    starts = np.concatenate([[0], np.cumsum(cnt)[:-1]])
-    for k in np.nonzero(cnt[:n] >= 5)[0]:
-        if np.median(gs[starts[k]:starts[k] + cnt[k]]) > o["rigid_agree"]:
-            wild[k] = True
+    np.logical_or.at(wild, np.where(on, seg, n),
+                     (speed > 1.5 * o["search_radius"]) | (dz > o["match_max_dz"]))
     on &= ~wild[np.where(on, seg, n)]
     cost_r = pixel_cost(I0, D0, I1, D1, np.where(on[..., None], flow_r, 0.0), o)
     typical = match["typical"]

@@ -165,10 +165,10 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from ._validation import nonnegative, positive, positive_int
 from ._rgbd_energy import Linearised, depth_sigma, pcg
 from ._rgbd_match import geodesic_fill, match_field
 from ._rgbd_segments import rigid_field
+from ._validation import nonnegative, positive, positive_int
 from .camera import PinholeCamera, check_camera
 
 __all__ = [
@@ -186,8 +186,9 @@ PENALTIES = ("charbonnier", "quadratic")
 _HOLE_EDGE_WEIGHT = 0.05
 #: pyramid levels refined from a match (``levels=None``): the match is good to a pixel or two
 _MATCHED_LEVELS = 2
-#: images with a shorter side are refined from zero (OpenCV's DIS needs 12 px, the block search more)
-_MIN_MATCH_SIZE = 16
+#: images with a shorter side start from zero: DIS's 8 px patches and the block search's windows
+#: need more pixels per object than so small an image has (OpenCV's DIS itself needs 12 px)
+_MIN_MATCH_SIZE = 64
 
 _DEFAULTS = {
     "lam": None,
@@ -218,7 +219,6 @@ _DEFAULTS = {
     "rigid": True,
     "structure_sigma": 0.0,
     "rigid_margin": 0.5,
-    "rigid_agree": 1e9,
     "rigid_prior": 1e-2,
     "rigid_still": 0.2,
     "rigid_agree_px": 0.5,
@@ -479,8 +479,8 @@ def _options(options):
     o["hidden_weight"] = nonnegative(o["hidden_weight"], "hidden_weight")
     for k in ("match_depth_weight", "search_radius", "match_texture", "match_margin"):
         o[k] = nonnegative(o[k], k)
-    for k in ("match_depth_trunc", "match_cost", "match_fb", "match_sure", "match_max_dz", "fill_depth_scale", "fill_grey_scale",
-              "fill_reach"):
+    for k in ("match_depth_trunc", "match_cost", "match_fb", "match_sure", "match_max_dz", "fill_depth_scale",
+              "fill_grey_scale", "fill_reach"):
         o[k] = positive(o[k], k)
     o["match_window"] = positive_int(o["match_window"], "match_window")
     if o["penalty"] not in PENALTIES:
@@ -707,7 +707,8 @@ def _estimate(I0, D0, I1, D1, cam, o, match):
             keep |= match["rigid"]
         fill = np.where(keep[..., None], match["m"], fill)
         target = np.where(known[..., None], match["m"], fill)
-        weight = o["match_weight"] * np.where(known, match["conf"], 0.0) + o["hidden_weight"] * match["hidden"]
+        weight = (o["match_weight"] * np.where(known, match["conf"], 0.0)
+                  + o["hidden_weight"] * match["hidden"])
         mpyr = _match_pyramid(target, weight, match["hidden"], n)
         match["init"] = fill
         s = fill
@@ -728,9 +729,11 @@ def _estimate(I0, D0, I1, D1, cam, o, match):
 def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     r"""Dense 3-D velocities of the pixels of an RGB-D frame from it and the next frame.
 
-    Minimises the energy of the module documentation (photometric + geometric data terms linearised
-    through the projection Jacobian, robust smoothness weighted down across depth edges) coarse to
-    fine with warping, by IRLS and block-Jacobi preconditioned conjugate gradients.
+    Finds a field of matches (optical flow by search, lifted with the depths; the rigid motion of each
+    depth-connected surface), then minimises the energy of the module documentation (photometric +
+    geometric data terms linearised through the projection Jacobian, a term tying the field to the
+    matches, robust smoothness weighted down across depth edges) on the finest pyramid levels with
+    warping, by IRLS and block-Jacobi preconditioned conjugate gradients.
 
     Parameters
     ----------
@@ -744,26 +747,50 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     dt : float, > 0
         Time between the frames (s).
     **options
-        ``lam`` (0.05): smoothness weight :math:`\lambda`, > 0 (without smoothing each pixel's
-        data term has rank 2 and the system is singular: the aperture problem).
-        ``sigma_i`` (0.02): photometric scale (grey levels in [0, 1]); residuals well above it are
-        treated as outliers by the Charbonnier penalty.
-        ``sigma_d`` (0.004 m): geometric scale (depth noise).
-        ``sigma_s`` (0.001 m): smoothness scale: neighbour displacement differences well above it are
-        discontinuities.
-        ``edge_scale`` (3.0): :math:`\kappa` of the edge weights :math:`w_{pq}`, in pixel footprints.
-        ``occlusion`` (0.02 m): a warped depth this much in front of the moved point marks it occluded.
-        ``penalty`` (``"charbonnier"``): or ``"quadratic"`` (every term squared: the weights are
-        constant and each warp minimises its linearised energy, up to the CG iterations).
-        ``levels`` (None: as many as fit): pyramid levels; ``min_size`` (6): smallest side of the
-        coarsest level (large motions need deep pyramids). ``warps`` (3), ``irls`` (2),
+        Where two defaults are given, the first applies from matches (chosen on the training split
+        of ``benchmarks/_evalscenes.py``), the second with ``init="zero"`` (the classic estimator).
+
+        *The start.* ``init`` (``"matches"``): ``"matches"``, ``"zero"`` (coarse to fine from zero
+        displacement; images under 64 px on a side always start from zero) or an (H, W, 3) array of
+        velocities (m/s, NaN: unknown) used as the match. ``match_weight`` (1.0) and ``sigma_m``
+        (1.0 px): weight and scale of the match term; ``hidden_weight`` (0.1): its weight at hidden
+        pixels (tied to their surface's motion). ``rigid`` (True): move well-aligned depth segments
+        rigidly. The matching's own thresholds (``search_radius`` 28 px, ``match_window``,
+        ``match_depth_weight``, ``match_depth_trunc``, ``match_cost``, ``match_fb``, ``match_sure``,
+        ``match_margin``, ``match_max_dz``, ``match_texture``; ``fill_depth_scale``,
+        ``fill_grey_scale``, ``fill_reach``; ``rigid_margin``, ``rigid_agree_px``,
+        ``rigid_prior``, ``rigid_still``, ``rigid_levels``, ``rigid_min_pixels``,
+        ``rigid_max_pixels``) are documented in :mod:`flowtrack._rgbd_match` and
+        :mod:`flowtrack._rgbd_segments`.
+
+        *The energy.* ``lam`` (0.2 / 0.05): smoothness weight :math:`\lambda`, > 0 (without
+        smoothing each pixel's data term has rank 2 and the system is singular: the aperture
+        problem). ``sigma_i`` (0.02): photometric scale (grey levels in [0, 1]); residuals well above
+        it are treated as outliers by the Charbonnier penalty. ``sigma_d`` (0.004 m) and
+        ``sigma_d_z2`` (0.0015 / 0 m per m²): geometric scale :math:`\sigma_D(Z)`.
+        ``sigma_s`` (0.0005 / 0.001 m): smoothness scale: neighbour displacement differences well
+        above it are discontinuities. ``edge_scale`` (3.0): :math:`\kappa` of the edge weights
+        :math:`w_{pq}`, in pixel footprints. ``occlusion`` (0.02 m): a warped depth this much in
+        front of the moved point marks it occluded. ``truncate_depth`` (True / False): no geometric
+        term where the warped depth is this much behind the moved point. ``penalty``
+        (``"charbonnier"``): or ``"quadratic"`` (every term squared: the weights are constant and
+        each warp minimises its linearised energy, up to the CG iterations). ``use_color``,
+        ``use_depth`` (True): switch a data term off (ablation).
+
+        *The images.* ``blur`` (0.8 px): Gaussian pre-smoothing of the images. ``structure_sigma``
+        (0: off): replace both images by their texture :math:`I - G_\sigma * I`.
+        ``depth_filter`` (True / False): replace each depth by the mean of its 3×3 neighbours on the
+        same surface.
+
+        *The solver.* ``levels`` (None: 2 from matches, as many as fit from zero): pyramid levels;
+        ``min_size`` (6): smallest side of the coarsest level. ``warps`` (2 / 3), ``irls`` (2),
         ``cg_iterations`` (15): per level, warps; per warp, reweightings; per reweighting, CG
-        iterations. ``blur`` (0.8 px): Gaussian pre-smoothing
-        of the images. ``use_color``, ``use_depth`` (True): switch a data term off (ablation).
-        ``backend`` (``"auto"``): ``"numba"`` (compiled loops, :mod:`flowtrack._rgbd_kernels`),
-        ``"numpy"`` (vectorised, about 5x slower) or ``"auto"`` (numba when importable).
-        ``return_info`` (False): also return a dict with ``levels`` and the finest level's
-        linearised problem (``problem``, for tests and teaching).
+        iterations. ``backend`` (``"auto"``): ``"numba"`` (compiled loops,
+        :mod:`flowtrack._rgbd_kernels`), ``"numpy"`` (vectorised, about 5x slower) or ``"auto"``
+        (numba when importable). ``return_info`` (False): also return a dict with ``levels``, the
+        finest level's linearised problem (``problem``, for tests and teaching) and the ``match``
+        (its field ``m``, confidence ``conf``, ``hidden`` mask, optical ``flow``, brightness
+        ``gain``, the segments and which pixels moved rigidly).
 
     Returns
     -------
@@ -789,6 +816,9 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     if cam.width is not None and cam.height is not None and (cam.height, cam.width) != shape:
         raise ValueError(f"cam is for {cam.height}×{cam.width} images, the images are {shape[0]}×{shape[1]}")
     dt = positive(dt, "dt")
+    start = options.get("init", _DEFAULTS["init"])
+    if isinstance(start, str) and start == "matches" and min(shape) < _MIN_MATCH_SIZE:
+        options = {**options, "init": "zero"}  # too small to match: the classic estimator
     o = _options(options)
     if not isinstance(o["init"], str) and np.shape(o["init"])[:2] != shape:
         raise ValueError(f"init must have shape {(*shape, 3)} (the image's), got {np.shape(o['init'])}")
@@ -801,7 +831,7 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     match = None
     if not isinstance(o["init"], str):
         match = _initial_match(o["init"], shape, dt)
-    elif o["init"] == "matches" and min(shape) >= _MIN_MATCH_SIZE:
+    elif o["init"] == "matches":
         K = None if o["backend"] == "numpy" else _kernels()
         intr = (cam.fx, cam.fy, cam.cx, cam.cy)
         match = match_field(I0, D0, I1, D1, intr, o, K)
