@@ -29,7 +29,8 @@ linearising.
 4. **Lifting.** A pixel's displacement is :math:`X_1 - X_0` with :math:`X_1` back-projected at the
    matched position :math:`x + u` with the depth of frame t+1 read there: of the four pixels around
    :math:`x + u`, the valid depth nearest the point's own (a match next to a silhouette does not read
-   the other surface).
+   the other surface); where even that one is more than ``match_max_dz`` away (or none is valid),
+   the point keeps its depth.
 5. **Brightness.** :math:`I_1(x + u) \approx a I_0(x) + b`, fitted by least squares with three robust
    refits on the better half of the matched pixels.
 6. **Fill** (:func:`geodesic_fill`, used by :func:`flowtrack.rgbd_flow.rgbd_scene_flow` after the
@@ -310,9 +311,12 @@ def match_field(I0, D0, I1, D1, intr, o, kernels=None):
             near = np.where(take, gap, near)
             front = np.where(ok, np.minimum(front, d), front)
     valid0 = D0 > 0
+    # a depth change beyond match_max_dz per frame reads another surface (or none): the point keeps
+    # its depth (a per-pixel sanity bound; such a pixel is never matched, but it may keep this field)
+    Z1 = np.where((Z1 > 0) & (near <= o["match_max_dz"]), Z1, D0)
     X0 = np.stack([(xx - cx) / fx * D0, (yy - cy) / fy * D0, D0], axis=-1)
     X1 = np.stack([(xq - cx) / fx * Z1, (yq - cy) / fy * Z1, Z1], axis=-1)
-    m = np.where((valid0 & (Z1 > 0))[..., None], X1 - X0, 0.0)
+    m = np.where(valid0[..., None], X1 - X0, 0.0)
 
     # confidence
     # the thresholds are relative to the image's typical cost (its noise level): the median cost

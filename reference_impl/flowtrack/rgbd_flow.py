@@ -751,7 +751,7 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
         of ``benchmarks/_evalscenes.py``), the second with ``init="zero"`` (the classic estimator).
 
         *The start.* ``init`` (``"matches"``): ``"matches"``, ``"zero"`` (coarse to fine from zero
-        displacement; images under 64 px on a side always start from zero) or an (H, W, 3) array of
+        displacement; by default an image under 64 px on a side starts from zero) or an (H, W, 3) array of
         velocities (m/s, NaN: unknown) used as the match. ``match_weight`` (1.0) and ``sigma_m``
         (1.0 px): weight and scale of the match term; ``hidden_weight`` (0.1): its weight at hidden
         pixels (tied to their surface's motion). ``rigid`` (True): move well-aligned depth segments
@@ -816,8 +816,7 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     if cam.width is not None and cam.height is not None and (cam.height, cam.width) != shape:
         raise ValueError(f"cam is for {cam.height}×{cam.width} images, the images are {shape[0]}×{shape[1]}")
     dt = positive(dt, "dt")
-    start = options.get("init", _DEFAULTS["init"])
-    if isinstance(start, str) and start == "matches" and min(shape) < _MIN_MATCH_SIZE:
+    if "init" not in options and min(shape) < _MIN_MATCH_SIZE:
         options = {**options, "init": "zero"}  # too small to match: the classic estimator
     o = _options(options)
     if not isinstance(o["init"], str) and np.shape(o["init"])[:2] != shape:
