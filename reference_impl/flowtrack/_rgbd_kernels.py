@@ -1,8 +1,9 @@
 """Compiled (numba) inner loops of :mod:`flowtrack.rgbd_flow`.
 
-Each kernel does exactly what the vectorised numpy code beside it in ``rgbd_flow.py`` does (the tests
-compare the two), fused into one pass over the pixels so that no temporaries are made. Importing this
-module raises ``ImportError`` when numba is missing; ``rgbd_flow`` then uses its numpy code.
+Each kernel does exactly what the vectorised numpy code beside it does (``rgbd_flow.py``,
+``_rgbd_energy.py``; the geodesic sweeps: ``_rgbd_match.geodesic_nearest_numpy``; the tests compare
+the two), fused into passes over the pixels so that no temporaries are made. Importing this module
+raises ``ImportError`` when numba is missing; ``rgbd_flow`` then uses the numpy code.
 """
 
 from __future__ import annotations
