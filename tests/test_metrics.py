@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 
 from flowtrack.datasets import mot_challenge_tracks, tud_campus_tracks
-from flowtrack.metrics import clear_mot, iou_distance
+from flowtrack.metrics import (
+    clear_mot,
+    flow_end_point_errors,
+    interior_mask,
+    iou_distance,
+    remove_ignored,
+    worst_case_flow_metrics,
+)
 
 HAVE_MOTMETRICS_DATA = importlib.util.find_spec("motmetrics") is not None
 needs_data = pytest.mark.skipif(not HAVE_MOTMETRICS_DATA, reason="motmetrics wheel (data files) missing")
@@ -401,3 +408,183 @@ def test_iou_distance_bad_inputs():
         iou_distance([[0, 0, 1, 1]], [[0, 0, -1, 1]])
     with pytest.raises(ValueError, match="boxes_b"):
         iou_distance([[0, 0, 1, 1]], [[0, np.inf, 1, 1]])
+
+
+# --------------------------------------------------------------------------------------------------
+# objects to ignore: against enumerating every assignment
+# --------------------------------------------------------------------------------------------------
+def _best_assignment_brute(D, max_dist):
+    """All partial one-to-one assignments within max_dist: the most pairs, then the least total."""
+    n, m = D.shape
+    best, best_key = [], (0, 0.0)
+    rows = list(range(n))
+    for k in range(1, min(n, m) + 1):
+        for rs in itertools.combinations(rows, k):
+            for cs in itertools.permutations(range(m), k):
+                if all(D[r, c] <= max_dist for r, c in zip(rs, cs)):
+                    key = (k, -sum(D[r, c] for r, c in zip(rs, cs)))
+                    if key > best_key:
+                        best, best_key = list(zip(rs, cs)), key
+    return best
+
+
+def test_remove_ignored_agrees_with_brute_force_joint_assignment(rng):
+    for _ in range(60):
+        n_g, n_i, n_h = rng.integers(0, 3), rng.integers(0, 3), rng.integers(0, 4)
+        G = rng.uniform(0, 1, (n_g, 2))
+        I_ = rng.uniform(0, 1, (n_i, 2))
+        Hy = rng.uniform(0, 1, (n_h, 2))
+        gt = [{f"g{k}": G[k] for k in range(n_g)}]
+        ign = [{f"i{k}": I_[k] for k in range(n_i)}]
+        hyp = [{f"h{k}": Hy[k] for k in range(n_h)}]
+        kept = remove_ignored(gt, ign, hyp, 0.4)
+        objs = np.vstack([G, I_]) if n_g + n_i else np.zeros((0, 2))
+        D = np.linalg.norm(objs[:, None] - Hy[None], axis=-1).reshape(len(objs), n_h)
+        drop = {f"h{c}" for r, c in _best_assignment_brute(D, 0.4) if r >= n_g}
+        assert set(kept[0]) == set(hyp[0]) - drop
+
+
+def test_remove_ignored_prefers_the_counted_object_when_it_keeps_more_pairs():
+    # hypothesis "a" is near both the counted object 1 and the ignored object 2, "b" only near 2: the
+    # joint assignment pairs a-1 and b-2 (two pairs), so "a" is kept as a match and "b" is dropped
+    gt, ign = [{1: [0.0, 0.0]}], [{2: [0.15, 0.0]}]
+    hyp = [{"a": [0.1, 0.0], "b": [0.2, 0.0]}]
+    assert remove_ignored(gt, ign, hyp, 0.12) == [{"a": [0.1, 0.0]}]
+    # with no ignored objects the hypotheses are returned as they are
+    assert remove_ignored([{}], [{}], [{"x": [1.0, 2.0]}], 0.1) == [{"x": [1.0, 2.0]}]
+
+
+def test_remove_ignored_bad_inputs():
+    with pytest.raises(ValueError, match="same number of frames"):
+        remove_ignored([{}], [{}, {}], [{}], 0.1)
+    with pytest.raises(ValueError, match="both in gt and in ignore"):
+        remove_ignored([{1: [0.0, 0.0]}], [{1: [0.0, 0.0]}], [{}], 0.1)
+    with pytest.raises(ValueError, match="max_dist"):
+        remove_ignored([{}], [{}], [{}], 0.0)
+    with pytest.raises(TypeError, match="ignore"):
+        remove_ignored([{}], "frames", [{}], 0.1)
+
+
+# --------------------------------------------------------------------------------------------------
+# scene flow, worst case: against pixel-by-pixel loops and hand-computed cases
+# --------------------------------------------------------------------------------------------------
+def _interior_brute(lab, w):
+    H, W = lab.shape
+    out = np.zeros((H, W), bool)
+    for r in range(H):
+        for c in range(W):
+            if lab[r, c] <= 0:
+                continue
+            out[r, c] = all(lab[rr, cc] == lab[r, c] for rr in range(max(0, r - w), min(H, r + w + 1))
+                            for cc in range(max(0, c - w), min(W, c + w + 1)))
+    return out
+
+
+def _blobs(rng, shape, n=4):
+    lab = np.zeros(shape, int)
+    for k in range(1, n + 1):
+        r0, c0 = rng.integers(0, shape[0]), rng.integers(0, shape[1])
+        lab[r0:r0 + rng.integers(2, 9), c0:c0 + rng.integers(2, 9)] = k
+    return lab
+
+
+@pytest.mark.parametrize("width", [0, 1, 2, 3])
+def test_interior_mask_against_pixel_loops(rng, width):
+    for _ in range(5):
+        lab = _blobs(rng, (13, 17))
+        assert np.array_equal(interior_mask(lab, width), _interior_brute(lab, width))
+
+
+def test_interior_mask_bad_inputs():
+    with pytest.raises(ValueError, match="labels"):
+        interior_mask(np.zeros((3, 3)), 1)
+    with pytest.raises(ValueError, match="labels"):
+        interior_mask(np.zeros((3, 3, 1), int), 1)
+    with pytest.raises(ValueError, match="width"):
+        interior_mask(np.zeros((3, 3), int), -1)
+
+
+def _worst_case_brute(pred, gt, lab, moving, tau_a, tau_r, w):
+    H, W, _ = gt.shape
+    inner = _interior_brute(lab, w)
+    mv, st, gross, inter = [], [], 0, []
+    for r in range(H):
+        for c in range(W):
+            g = gt[r, c]
+            if any(math.isnan(x) for x in g):
+                continue
+            p = pred[r, c] if all(math.isfinite(x) for x in pred[r, c]) else np.zeros(3)
+            e = math.sqrt(sum((a - b) ** 2 for a, b in zip(p, g)))
+            if moving[r, c]:
+                mv.append(e)
+                gross += e > tau_a and e > tau_r * math.sqrt(sum(x * x for x in g))
+            else:
+                st.append(e)
+            if inner[r, c]:
+                inter.append((e, (r, c)))
+    mv_sorted = sorted(mv)
+    n = len(mv_sorted)
+    median = (mv_sorted[(n - 1) // 2] + mv_sorted[n // 2]) / 2
+    return {"epe_moving_mean": sum(mv) / n, "epe_moving_median": median,
+            "epe_static_mean": sum(st) / len(st), "outlier_share": gross / n,
+            "max_interior_error": max(inter)[0], "max_interior_pixel": max(inter)[1],
+            "n_moving": n, "n_static": len(st), "n_outliers": gross, "n_interior": len(inter)}
+
+
+def test_worst_case_flow_metrics_against_pixel_loops(rng):
+    for _ in range(4):
+        H, W = 14, 18
+        lab = _blobs(rng, (H, W), n=3)
+        gt = np.zeros((H, W, 3))
+        for k in range(1, 4):
+            gt[lab == k] = rng.normal(0, 0.02, 3)
+        gt[rng.random((H, W)) < 0.1] = np.nan  # no ground truth
+        pred = gt + rng.normal(0, 0.004, gt.shape) * (1 + 20 * (rng.random((H, W, 1)) < 0.1))
+        pred[rng.random((H, W)) < 0.05] = np.nan  # not answered: zero displacement
+        moving = lab > 0
+        got = worst_case_flow_metrics(pred, gt, lab, moving, abs_threshold=0.01, rel_threshold=0.5,
+                                      interior_width=1)
+        want = _worst_case_brute(pred, gt, lab, moving, 0.01, 0.5, 1)
+        assert got["max_interior_pixel"] == want.pop("max_interior_pixel")
+        for k, v in want.items():
+            assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-15), k
+
+
+def test_gross_outliers_need_both_thresholds():
+    # moving 4 cm: an error is gross above max(1 cm, 2 cm); moving 1 cm: above max(1 cm, 0.5 cm)
+    gt = np.zeros((1, 6, 3))
+    gt[0, :3, 0] = 0.04
+    gt[0, 3:, 0] = 0.01
+    pred = gt.copy()
+    pred[0, :3, 1] = [0.015, 0.019, 0.021]  # only the last error is above 2 cm
+    pred[0, 3:, 1] = [0.009, 0.0105, 0.02]  # the last two are above 1 cm
+    m = worst_case_flow_metrics(pred, gt, np.ones((1, 6), int), interior_width=0)
+    assert m["n_moving"] == 6 and m["n_outliers"] == 3
+    assert m["outlier_share"] == pytest.approx(0.5)
+    assert m["max_interior_error"] == pytest.approx(0.021) and m["max_interior_pixel"] == (0, 2)
+    assert math.isnan(m["epe_static_mean"]) and m["n_static"] == 0
+
+
+def test_the_default_moving_set_is_the_nonzero_ground_truth_and_nan_is_unscored():
+    gt = np.zeros((2, 2, 3))
+    gt[0, 0] = [0.0, 0.0, 0.05]
+    gt[1, 1] = np.nan
+    pred = np.full((2, 2, 3), 0.001)
+    m = worst_case_flow_metrics(pred, gt, np.zeros((2, 2), int))
+    assert (m["n_moving"], m["n_static"], m["n_interior"]) == (1, 2, 0)
+    assert m["epe_static_mean"] == pytest.approx(0.001 * math.sqrt(3))
+    assert math.isnan(m["max_interior_error"]) and m["max_interior_pixel"] is None
+
+
+def test_end_point_errors_count_an_unanswered_pixel_as_zero_motion():
+    e = flow_end_point_errors([[np.inf, 0.0, 0.0], [1.0, 2.0, 2.0]], [[0.0, 0.3, 0.4], [1.0, 0.0, 0.0]])
+    assert e.tolist() == pytest.approx([0.5, math.sqrt(8.0)])
+    with pytest.raises(ValueError, match="pred"):
+        flow_end_point_errors(np.zeros((2, 3)), np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="gt"):
+        flow_end_point_errors(np.zeros(3), [0.0, np.inf, 0.0])
+    with pytest.raises(ValueError, match="moving"):
+        worst_case_flow_metrics(np.zeros((2, 2, 3)), np.zeros((2, 2, 3)), np.zeros((2, 2), int),
+                                moving=np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="labels"):
+        worst_case_flow_metrics(np.zeros((2, 2, 3)), np.zeros((2, 2, 3)), np.zeros((3, 2), int))

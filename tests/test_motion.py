@@ -136,6 +136,34 @@ def test_velocity_covariance_floor_and_effective_points():
     np.testing.assert_allclose(c - b, 0.05**2 * np.eye(3), atol=1e-15)
 
 
+def test_speed_fraction_models_an_error_shared_by_the_whole_cluster():
+    """A cluster whose flow is off by one common factor (1 + e), e ~ N(0, a^2), along its motion (plus
+    small independent noise): its residuals cannot see e, the speed-fraction term does. Monte Carlo
+    NEES of the fitted velocity against the truth: about 3 (the dof; the residuals here are independent,
+    so n_eff = n) with speed_fraction = a, far above without it."""
+    rng = np.random.default_rng(3)
+    a, u_true = 0.1, np.array([0.2, 0.05, 0.0])
+    X = rng.normal(scale=0.05, size=(300, 3))
+    nees = {0.0: [], a: []}
+    for _ in range(400):
+        flow = (1 + a * rng.normal()) * u_true + 0.003 * rng.normal(size=X.shape)
+        for frac in nees:
+            m = rigid_motion_from_flow(X, flow, 0.1, speed_fraction=frac, min_std=0.0,
+                                       max_effective_points=300)
+            e = m.velocity - u_true
+            nees[frac].append(e @ np.linalg.solve(m.velocity_cov, e))
+    assert 2.5 < np.mean(nees[a]) < 3.5, np.mean(nees[a])
+    assert np.mean(nees[0.0]) > 30
+    # the term itself: a^2 u u^T on top of the residual covariance
+    flow = u_true + 0.003 * rng.normal(size=X.shape)
+    m0 = rigid_motion_from_flow(X, flow, 0.1)
+    m1 = rigid_motion_from_flow(X, flow, 0.1, speed_fraction=0.3)
+    np.testing.assert_allclose(m1.velocity_cov - m0.velocity_cov, 0.09 * np.outer(m0.velocity, m0.velocity),
+                               atol=1e-15)
+    with pytest.raises(ValueError, match="speed_fraction"):
+        rigid_motion_from_flow(X, flow, 0.1, speed_fraction=-0.1)
+
+
 def test_rigid_motion_2d():
     rng = np.random.default_rng(4)
     X = rng.normal(size=(20, 2))
@@ -237,6 +265,35 @@ def test_turn_rate_predict_is_continuous_at_zero_rate():
         vx, vy = np.longdouble(x[3]), np.longdouble(x[4])
         px = np.longdouble(x[0]) + np.longdouble(0.5) * vx - A * vy - B * vx
         assert float(abs(np.longdouble(fw[0]) - px)) < 1e-14
+
+
+def test_turn_rate_coefficients_are_accurate_at_every_angle_against_50_digit_arithmetic():
+    """sin, 1 - cos, A, B, dA/dw, dB/dw within 1e-13 (relative) of their exact values, on both sides of
+    the series switch and far from it: the closed form T - sin(wT)/w alone is off by ~1e-10 at
+    wT = 1e-3 (cancellation), a two-term series by ~1e-15 at 1e-3 but 1e-6 at 0.3."""
+    import mpmath
+
+    from flowtrack.motion import _SERIES, _coefficients
+
+    mpmath.mp.dps = 50
+
+    def exact(w, T):
+        w, T = mpmath.mpf(w), mpmath.mpf(T)
+        th = w * T
+        s, omc = mpmath.sin(th), 1 - mpmath.cos(th)
+        return [s, omc, omc / w, T - s / w, (T * s * w - omc) / w**2, (s - T * w * mpmath.cos(th)) / w**2]
+
+    thetas = np.r_[np.logspace(-7, 0.6, 120), _SERIES * (1 - 1e-12), _SERIES * (1 + 1e-12), 1e-3, 1.01e-3]
+    worst = 0.0
+    for T in (0.1, 0.8):
+        for th in thetas:
+            for w in (th / T, -th / T):
+                for got, want in zip(_coefficients(np.array([w]), T), exact(w, T)):
+                    worst = max(worst, float(abs((mpmath.mpf(float(got[0])) - want) / want)))
+    assert worst < 1e-13, worst
+    # and at w = 0 exactly: the constant-velocity limit, A = B = dB = 0, dA = T^2 / 2
+    s, omc, A, B, dA, dB = _coefficients(np.zeros(1), 0.5)
+    assert s[0] == omc[0] == A[0] == B[0] == dB[0] == 0.0 and dA[0] == 0.125
 
 
 def test_turn_rate_predicts_a_circle_exactly():

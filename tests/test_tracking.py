@@ -573,6 +573,37 @@ def test_turn_rate_model_predicts_an_arc_better_than_constant_velocity():
     assert err["turn_rate"] * 2 <= err["cv"], err
 
 
+def test_a_turn_rate_track_starts_with_the_measured_yaw_rate():
+    dt = 0.1
+    p, v = _circle(3, dt)
+    trk = MultiObjectTracker(dt, 0.05, 0.002**2, min_hits=1, motion_model="turn_rate", velocity_update=True,
+                             omega_var=4.0, measured_omega_var=0.01)
+    trk.step(np.vstack([p[:1], p[:1] + 1.0]), np.vstack([v[:1], v[:1]]), yaw_rates=[1.0, np.nan])
+    a, b = trk.tracks
+    assert a.yaw_rate == 1.0 and a.P[-1, -1] == 0.01      # measured: its value and its variance
+    assert b.yaw_rate == 0.0 and b.P[-1, -1] == 4.0       # NaN: unknown, 0 with omega_var
+    # the first predictions follow the arc from birth on: 5 frames ahead of the first detection
+    exact, _ = _circle(6, dt)
+    for w, bound in ((1.0, 1e-3), (np.nan, None)):
+        t = MultiObjectTracker(dt, 0.05, 0.002**2, min_hits=1, motion_model="turn_rate",
+                               velocity_update=True)
+        t.step(p[:1], v[:1], yaw_rates=[w])
+        err = np.linalg.norm(t.predict_ahead(5)[0][0][:2] - exact[5])
+        if bound is not None:
+            assert err < bound
+        else:
+            assert err > 0.01                               # the tangent runs off the arc
+    # the constant-velocity model has no yaw rate: the measurement changes nothing
+    cv = [MultiObjectTracker(dt, 0.05, 0.002**2, min_hits=1, velocity_update=True) for _ in range(2)]
+    cv[0].step(p[:1], v[:1], yaw_rates=[1.0])
+    cv[1].step(p[:1], v[:1])
+    np.testing.assert_array_equal(cv[0].tracks[0].x, cv[1].tracks[0].x)
+    with pytest.raises(ValueError, match="yaw_rates"):
+        trk.step(p[1:2], v[1:2], yaw_rates=[1.0, 2.0])
+    with pytest.raises(ValueError, match="yaw_rates"):
+        trk.step(p[1:2], v[1:2], yaw_rates=[np.inf])
+
+
 def test_predict_ahead_of_the_default_tracker_is_F_to_the_n():
     trk = MultiObjectTracker(0.1, 0.5, 1e-3, dim=2)
     for k in range(3):
@@ -1212,3 +1243,11 @@ def test_the_initiator_must_start_the_predictors_states():
         MultiObjectTracker(0.1, 1.0, 0.01, predictor=MotionPredictor("turn_rate"))
     trk = MultiObjectTracker(0.1, 1.0, 0.01, motion_model="turn_rate")  # the options match them
     assert trk.step(np.zeros((1, 2))) == [] and trk.tracks[0].x.shape == (5,)
+
+def test_a_frame_without_detections_with_position_covariances_is_a_miss():
+    # the demo passes (0, 3, 3) position covariances for a frame without detections
+    trk = MultiObjectTracker(dt=0.1, q=1.0, r=1e-4, dim=3, velocity_update=True, min_hits=1)
+    trk.step(np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 3)), np.eye(3)[None] * 1e-2,
+             position_covs=np.eye(3)[None] * 1e-4)
+    out = trk.step(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3)), position_covs=np.zeros((0, 3, 3)))
+    assert [(t.id, t.status, t.misses) for t in out] == [(0, "coasting", 1)]

@@ -84,6 +84,13 @@ def test_check_psd_still_checks_symmetry_then_definiteness():
     check_psd(np.diag([1.0, 0.0]), "Q")
 
 
+def test_check_psd_accepts_an_empty_stack():
+    # a frame without detections gives (0, 3, 3) position covariances: nothing to fail (the demo used to
+    # stop there with "position_covs must be positive definite (smallest eigenvalue 0)")
+    for strict in (False, True):
+        assert check_psd(np.zeros((0, 3, 3)), "R", strict=strict).shape == (0, 3, 3)
+
+
 def test_cholesky_matches_numpy_single_and_batched(rng):
     S = random_spd(rng, 3, (5,))
     np.testing.assert_array_equal(cholesky(S, "S"), np.linalg.cholesky(S))

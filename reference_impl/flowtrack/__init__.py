@@ -13,7 +13,7 @@ The reference implementation of the flowtrack course. Modules:
 - :mod:`flowtrack.motion` – rigid motion from flow, the turn-rate track model (EKF).
 - :mod:`flowtrack.tracking_io` – ``tracks.csv``; :mod:`flowtrack.tracking_eval` – scoring a tracker run,
   the position-only vs flow-aided ablation.
-- :mod:`flowtrack.metrics` – CLEAR-MOT and identity metrics.
+- :mod:`flowtrack.metrics` – CLEAR-MOT and identity metrics; scene flow judged by its worst pixels.
 - :mod:`flowtrack.synth` – synthetic RGB-D scenes with exact ground truth (a package: shapes, ray
   casting, scenarios, scenes).
 - :mod:`flowtrack.datasets` – real data shipped inside installed packages (Middlebury Motorcycle,

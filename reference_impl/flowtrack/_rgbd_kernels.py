@@ -1,8 +1,9 @@
 """Compiled (numba) inner loops of :mod:`flowtrack.rgbd_flow`.
 
-Each kernel does exactly what the vectorised numpy code beside it in ``rgbd_flow.py`` does (the tests
-compare the two), fused into one pass over the pixels so that no temporaries are made. Importing this
-module raises ``ImportError`` when numba is missing; ``rgbd_flow`` then uses its numpy code.
+Each kernel does exactly what the vectorised numpy code beside it does (``rgbd_flow.py``,
+``_rgbd_energy.py``; the geodesic sweeps: ``_rgbd_match.geodesic_nearest_numpy``; the tests compare
+the two), fused into passes over the pixels so that no temporaries are made. Importing this module
+raises ``ImportError`` when numba is missing; ``rgbd_flow`` then uses the numpy code.
 """
 
 from __future__ import annotations
@@ -187,3 +188,48 @@ def pcg(M, rhs, Wv, Wh, s, n_iter):
                 for k in range(3):
                     p[i, j, k] = z[i, j, k] + beta * p[i, j, k]
     return s
+
+
+
+
+@_jit
+def geodesic_nearest(cost_h, cost_v, known, passes):
+    """Index (row * W + col) of the geodesically nearest known pixel of every pixel (-1: none), and the
+    geodesic distance to it (inf: none).
+
+    ``cost_h (H, W-1)``, ``cost_v (H-1, W)``: the length of each horizontal / vertical step (> 0).
+    Each pass sweeps every row left to right and back, then every column down and up (the numpy
+    fallback in ``rgbd_flow`` does the same sweeps, so both give the same indices).
+    """
+    H, W = known.shape
+    dist = np.full((H, W), np.inf)
+    src = np.full((H, W), -1, dtype=np.int64)
+    for i in range(H):
+        for j in range(W):
+            if known[i, j]:
+                dist[i, j] = 0.0
+                src[i, j] = i * W + j
+    for _ in range(passes):
+        for i in range(H):
+            for j in range(1, W):
+                c = dist[i, j - 1] + cost_h[i, j - 1]
+                if c < dist[i, j]:
+                    dist[i, j] = c
+                    src[i, j] = src[i, j - 1]
+            for j in range(W - 2, -1, -1):
+                c = dist[i, j + 1] + cost_h[i, j]
+                if c < dist[i, j]:
+                    dist[i, j] = c
+                    src[i, j] = src[i, j + 1]
+        for j in range(W):
+            for i in range(1, H):
+                c = dist[i - 1, j] + cost_v[i - 1, j]
+                if c < dist[i, j]:
+                    dist[i, j] = c
+                    src[i, j] = src[i - 1, j]
+            for i in range(H - 2, -1, -1):
+                c = dist[i + 1, j] + cost_v[i, j]
+                if c < dist[i, j]:
+                    dist[i, j] = c
+                    src[i, j] = src[i + 1, j]
+    return src, dist

@@ -237,12 +237,15 @@ def check_psd(mat: np.ndarray, name: str, *, strict: bool = False, atol: float =
     """Check symmetry and positive (semi-)definiteness of one matrix or a stack of them.
 
     Symmetry is checked to a relative tolerance (:func:`check_symmetric`); definiteness through
-    the smallest eigenvalue (``> 0`` if ``strict`` else ``>= -atol * scale``).
+    the smallest eigenvalue (``> 0`` if ``strict`` else ``>= -atol * scale``). An empty stack (shape
+    ``(0, n, n)``) passes.
     """
     check_symmetric(mat, name)
+    if mat.size == 0:  # an empty stack (a frame without detections) has no matrix to fail
+        return mat
     scale = _scale(mat)
     eig = np.linalg.eigvalsh(0.5 * (mat + np.swapaxes(mat, -1, -2)))
-    lo = eig.min() if eig.size else 0.0
+    lo = eig.min()
     if strict and lo <= 0:
         raise ValueError(f"{name} must be positive definite (smallest eigenvalue {lo:.3g})")
     if lo < -atol * scale:

@@ -38,6 +38,25 @@ positives :math:`\mathrm{IDTP}`; then :math:`\mathrm{IDFN} = G - \mathrm{IDTP}`,
 
 (py-motmetrics phrases this as a min-cost assignment of cost :math:`c_o + c_h - 2 n_{oh}` with
 dummy nodes; the minimisers coincide.)
+
+**Objects nobody can see** (:func:`remove_ignored`). As MOTChallenge does with its distractors and
+heavily occluded people, ground truth may name objects that are to be *ignored* in a frame (hidden,
+outside the image, too small to be detected): a hypothesis matched to one of them in that frame (one
+per object, by the same gated min-cost assignment, jointly with the objects that count) is removed
+before scoring, so that it is neither a false positive nor a match.
+
+**Scene flow judged by the worst case** (:func:`worst_case_flow_metrics`). With :math:`s_p` the true
+and :math:`\hat s_p` the estimated displacement of pixel :math:`p` (one frame, metres), the end-point
+error is :math:`e_p = \lVert \hat s_p - s_p \rVert` (a method without an answer at :math:`p`
+predicts :math:`\hat s_p = 0`). Pixel :math:`p` is a *gross outlier* when
+
+.. math::  e_p > \tau_\text{abs} \quad\text{and}\quad e_p > \tau_\text{rel} \lVert s_p \rVert
+
+(the KITTI convention, an error large in absolute terms *and* relative to the motion; defaults 1 cm
+and 50 %), counted over the moving pixels. The *interior* of an object (:func:`interior_mask`) are its
+pixels whose whole :math:`(2w+1) \times (2w+1)` neighbourhood lies on it (:math:`w = 2`): at least
+:math:`w` px from its silhouette; the largest error there is what a robot acting on the worst pixel
+of a body meets.
 """
 
 from __future__ import annotations
@@ -51,7 +70,14 @@ from scipy.optimize import linear_sum_assignment
 
 from ._validation import as_array, positive
 
-__all__ = ["clear_mot", "iou_distance"]
+__all__ = [
+    "clear_mot",
+    "flow_end_point_errors",
+    "interior_mask",
+    "iou_distance",
+    "remove_ignored",
+    "worst_case_flow_metrics",
+]
 
 _DISTANCES = ("euclidean", "iou")
 
@@ -367,3 +393,229 @@ def _fragmentations(states: list[bool]) -> int:
     last = len(states) - 1 - states[::-1].index(True)
     span = states[first : last + 1]
     return sum(1 for prev, cur in itertools.pairwise(span) if prev and not cur)
+
+
+# --------------------------------------------------------------------------------------------------
+# objects to ignore (MOTChallenge's distractors)
+# --------------------------------------------------------------------------------------------------
+def remove_ignored(gt, ignore, hyp, max_dist):
+    r"""Remove the hypotheses that match an object to be ignored, frame by frame.
+
+    In each frame the hypotheses are matched to the objects that count (``gt``) and to those to be
+    ignored (``ignore``) together, by the gated min-cost assignment :func:`clear_mot` uses (pairs
+    farther than ``max_dist`` never match; the most pairs, then the least total distance); a
+    hypothesis matched to an ignored object is dropped. Score the result with :func:`clear_mot`
+    against ``gt``.
+
+    Parameters
+    ----------
+    gt, ignore, hyp : sequence of dict
+        ``T`` frames each, ``{id: position}`` (Euclidean positions of one common length). An id may be
+        in ``gt`` in some frames and in ``ignore`` in others, not in both in one frame.
+    max_dist : float, > 0
+
+    Returns
+    -------
+    list of dict
+        ``hyp`` without the hypotheses matched to ignored objects.
+
+    Examples
+    --------
+    Object 2 is hidden in frame 0: the track on it there is neither a match nor a false positive;
+    the clutter track ``"x"`` is a false positive.
+
+    >>> gt = [{1: [0.0, 0.0]}]
+    >>> ignore = [{2: [1.0, 0.0]}]
+    >>> hyp = [{"a": [0.05, 0.0], "b": [1.02, 0.0], "x": [3.0, 0.0]}]
+    >>> kept = remove_ignored(gt, ignore, hyp, max_dist=0.1)
+    >>> sorted(kept[0])
+    ['a', 'x']
+    >>> clear_mot(gt, kept, 0.1)["fp"]
+    1
+    """
+    gt = _check_sequence(gt, "gt")
+    ignore = _check_sequence(ignore, "ignore")
+    hyp = _check_sequence(hyp, "hyp")
+    if not len(gt) == len(ignore) == len(hyp):
+        raise ValueError(f"gt, ignore and hyp must have the same number of frames, got {len(gt)}, "
+                         f"{len(ignore)} and {len(hyp)}")
+    max_dist = positive(max_dist, "max_dist")
+    dim: list[int | None] = [None]
+    out = []
+    for t, (g, ig, h) in enumerate(zip(gt, ignore, hyp)):
+        both = set(g) & set(ig) if isinstance(g, Mapping) and isinstance(ig, Mapping) else set()
+        if both:
+            raise ValueError(f"frame {t}: ids {sorted(both, key=repr)} are both in gt and in ignore")
+        gids, G = _frame_arrays(g, "gt", t, "euclidean", dim)
+        iids, I = _frame_arrays(ig, "ignore", t, "euclidean", dim)
+        hids, Hy = _frame_arrays(h, "hyp", t, "euclidean", dim)
+        if not iids or not hids:
+            out.append(dict(h))
+            continue
+        objs = I if G is None else np.vstack([G, I])
+        D = _euclidean(objs, Hy)
+        drop = {hids[j] for i, j in _gated_assignment(np.where(D > max_dist, np.nan, D)) if i >= len(gids)}
+        out.append({k: v for k, v in h.items() if k not in drop})
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# scene flow, worst case
+# --------------------------------------------------------------------------------------------------
+def flow_end_point_errors(pred, gt) -> np.ndarray:
+    r"""Per-pixel end-point error :math:`\lVert \hat s - s \rVert` of a scene (or optical) flow.
+
+    Parameters
+    ----------
+    pred : array_like, shape (..., D)
+        Estimated flow. A non-finite entry is a pixel the method did not answer: it counts as
+        predicting zero flow there (so it is not rewarded for abstaining).
+    gt : array_like, shape (..., D)
+        True flow, same shape; NaN where there is no ground truth (inf is rejected).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The errors, NaN where ``gt`` has a NaN.
+
+    Examples
+    --------
+    >>> pred = [[3.0, 4.0], [np.nan, 0.0], [1.0, 1.0]]
+    >>> flow_end_point_errors(pred, [[0.0, 0.0], [0.0, 2.0], [np.nan, 0.0]])
+    array([ 5.,  2., nan])
+    """
+    p = as_array(pred, "pred", finite=False)
+    g = as_array(gt, "gt", allow_nan=True)
+    if p.shape != g.shape or p.ndim < 1:
+        raise ValueError(f"pred must have the shape of gt {g.shape} (..., D), got {p.shape}")
+    answered = np.isfinite(p).all(axis=-1, keepdims=True)
+    return np.linalg.norm(np.where(answered, p, 0.0) - g, axis=-1)
+
+
+def interior_mask(labels, width: int = 2) -> np.ndarray:
+    r"""Object pixels at least ``width`` px inside their object's silhouette.
+
+    A pixel with label :math:`k > 0` is interior when every pixel of its
+    :math:`(2w+1) \times (2w+1)` neighbourhood inside the image also has label :math:`k` (the image
+    border is not a silhouette: an object cut by it keeps an interior up to the border). Label 0 is
+    the background, never interior.
+
+    Parameters
+    ----------
+    labels : array_like of int, shape (H, W)
+    width : int, >= 0
+        :math:`w`; 0 marks every object pixel.
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+
+    Examples
+    --------
+    >>> lab = np.zeros((7, 7), int)
+    >>> lab[1:7, 1:6] = 3
+    >>> interior_mask(lab, width=1).astype(int)
+    array([[0, 0, 0, 0, 0, 0, 0],
+           [0, 0, 0, 0, 0, 0, 0],
+           [0, 0, 1, 1, 1, 0, 0],
+           [0, 0, 1, 1, 1, 0, 0],
+           [0, 0, 1, 1, 1, 0, 0],
+           [0, 0, 1, 1, 1, 0, 0],
+           [0, 0, 1, 1, 1, 0, 0]])
+    """
+    lab = np.asarray(labels)
+    if lab.ndim != 2 or not (np.issubdtype(lab.dtype, np.integer) or np.issubdtype(lab.dtype, np.bool_)):
+        raise ValueError(f"labels must be an integer array of shape (H, W), got {lab.dtype} {lab.shape}")
+    if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 0:
+        raise ValueError(f"width must be an integer >= 0, got {width!r}")
+    w = int(width)
+    H, W = lab.shape
+    padded = np.pad(lab, w, mode="edge")
+    inside = lab > 0
+    for dy in range(2 * w + 1):
+        for dx in range(2 * w + 1):
+            inside &= padded[dy:dy + H, dx:dx + W] == lab
+    return inside
+
+
+def worst_case_flow_metrics(pred, gt, labels, moving=None, *, abs_threshold: float = 0.01,
+                            rel_threshold: float = 0.5, interior_width: int = 2) -> dict:
+    r"""A flow estimate judged by its worst pixels: tails, gross outliers and interior maxima.
+
+    See the module docstring for the definitions. Pixels without ground truth (NaN in ``gt``) are not
+    scored; a pixel the method did not answer (non-finite ``pred``) counts as predicting zero.
+
+    Parameters
+    ----------
+    pred, gt : array_like, shape (H, W, D)
+        Estimated and true displacements (one frame; metres for scene flow).
+    labels : array_like of int, shape (H, W)
+        Object id per pixel, 0 = background (for the interior).
+    moving : array_like of bool, shape (H, W), optional
+        The moving pixels (default: :math:`\lVert s_p \rVert > 0`); the others are static.
+    abs_threshold, rel_threshold : float, > 0
+        :math:`\tau_\text{abs}` (same unit as the flow) and :math:`\tau_\text{rel}` of a gross outlier.
+    interior_width : int, >= 0
+        :math:`w` of :func:`interior_mask`.
+
+    Returns
+    -------
+    dict
+        ``epe_moving_mean``, ``epe_moving_median``, ``epe_static_mean``, ``outlier_share`` (gross outliers
+        / moving pixels), ``max_interior_error`` (over every object's interior pixels; NaN when there are
+        none) and ``max_interior_pixel`` (its (row, col) or None), ``n_moving``, ``n_static``,
+        ``n_outliers``, ``n_interior``. Means and shares are NaN over an empty set.
+
+    Examples
+    --------
+    An object moving 2 cm per frame, one interior pixel of it off by 3 cm:
+
+    >>> gt = np.zeros((6, 6, 3)); lab = np.zeros((6, 6), int)
+    >>> gt[:, :5, 0] = 0.02; lab[:, :5] = 1
+    >>> pred = gt.copy(); pred[2, 2, 0] = -0.01
+    >>> m = worst_case_flow_metrics(pred, gt, lab, interior_width=1)
+    >>> m["n_moving"], m["n_outliers"], round(m["max_interior_error"], 3), m["max_interior_pixel"]
+    (30, 1, 0.03, (2, 2))
+    """
+    e = flow_end_point_errors(pred, gt)
+    g = as_array(gt, "gt", allow_nan=True)
+    if e.ndim != 2:
+        raise ValueError(f"pred and gt must have shape (H, W, D), got {g.shape}")
+    lab = np.asarray(labels)
+    if lab.shape != e.shape:
+        raise ValueError(f"labels must have shape {e.shape}, got {lab.shape}")
+    abs_threshold = positive(abs_threshold, "abs_threshold")
+    rel_threshold = positive(rel_threshold, "rel_threshold")
+    scored = np.isfinite(e)
+    speed = np.linalg.norm(np.where(np.isfinite(g), g, 0.0), axis=-1)
+    if moving is None:
+        mov = speed > 0
+    else:
+        mov = np.asarray(moving)
+        if mov.shape != e.shape or mov.dtype != bool:
+            raise ValueError(f"moving must be a bool array of shape {e.shape}, got {mov.dtype} {mov.shape}")
+    mv, st = scored & mov, scored & ~mov
+    gross = mv & (e > abs_threshold) & (e > rel_threshold * speed)
+    inner = scored & interior_mask(lab, interior_width)
+
+    def mean(x):
+        return float(x.mean()) if x.size else math.nan
+
+    out = {
+        "epe_moving_mean": mean(e[mv]),
+        "epe_moving_median": float(np.median(e[mv])) if mv.any() else math.nan,
+        "epe_static_mean": mean(e[st]),
+        "outlier_share": _ratio(gross.sum(), mv.sum()),
+        "max_interior_error": math.nan,
+        "max_interior_pixel": None,
+        "n_moving": int(mv.sum()),
+        "n_static": int(st.sum()),
+        "n_outliers": int(gross.sum()),
+        "n_interior": int(inner.sum()),
+    }
+    if inner.any():
+        ei = np.where(inner, e, -np.inf)
+        r, c = np.unravel_index(int(np.argmax(ei)), ei.shape)
+        out["max_interior_error"] = float(e[r, c])
+        out["max_interior_pixel"] = (int(r), int(c))
+    return out

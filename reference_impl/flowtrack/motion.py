@@ -30,9 +30,15 @@ Scene flow enters the tracker twice:
 
    The component of :math:`v` along :math:`n` is not turned (:math:`K n = 0`): it moves at constant
    velocity. As :math:`\omega \to 0`, :math:`A \to \omega T^2/2` and :math:`B \to \omega^2 T^3/6`, so the
-   model becomes constant velocity; near :math:`\theta = 0` the code uses those series (their
-   truncation error is below 1e-16 relative for :math:`|\theta| < 10^{-3}`), so there is no
-   :math:`0/0`. The model is nonlinear in :math:`\omega`; :class:`MotionBatchFilter` runs it as an
+   model becomes constant velocity. The closed forms lose digits there: :math:`T - \sin\theta/\omega`
+   subtracts two nearly equal numbers, with a relative rounding error of about
+   :math:`6\epsilon/\theta^2` (:math:`\epsilon = 2.2\cdot 10^{-16}`; 1e-10 at :math:`\theta = 10^{-3}`).
+   For :math:`|\theta| <` 0.3 the code therefore evaluates :math:`1 - \cos\theta`, A, B and their
+   :math:`\omega`-derivatives by eight terms of their Taylor series in :math:`\theta^2` (truncation
+   below 1e-19 relative at :math:`|\theta| = 0.3`) and the closed forms above (rounding below 2e-14
+   relative): every coefficient is within 1e-13 of its exact value, relative, for every
+   :math:`\theta`, with no :math:`0/0` (tested against 50-digit arithmetic, mpmath). The model is
+   nonlinear in :math:`\omega`; :class:`MotionBatchFilter` runs it as an
    extended Kalman filter with the Jacobian :func:`turn_rate_jacobian` (derived in sympy in
    :mod:`flowtrack.symbolic.motion`, checked by finite differences in the tests).
 
@@ -70,7 +76,33 @@ __all__ = [
     "turn_rate_predict",
 ]
 
-_SERIES = 1e-3  # |omega T| below this: the series of A, B and their derivatives
+#: |omega T| below this: the Taylor series of 1 - cos, A, B and their derivatives (the closed forms
+#: lose about log10(1 / theta^2) digits to cancellation; see the module docstring)
+_SERIES = 0.3
+_SERIES_TERMS = 8  # powers theta^0 .. theta^14 of the series in theta^2 below: truncation < 1e-19 at 0.3
+
+
+def _series(theta2: np.ndarray, coefficients) -> np.ndarray:
+    """Horner evaluation of sum_k c_k theta^(2k)."""
+    out = np.zeros_like(theta2)
+    for c in reversed(coefficients):
+        out = out * theta2 + c
+    return out
+
+
+def _taylor(sign_offset: int, factorial_of):
+    """Coefficients (-1)^k / factorial_of(k) of the series in theta^2, k = 0 .. _SERIES_TERMS - 1."""
+    from math import factorial
+
+    return [(-1) ** (k + sign_offset) / factorial(factorial_of(k)) for k in range(_SERIES_TERMS)]
+
+
+# (1 - cos t) / t^2 = sum (-1)^k t^2k / (2k+2)!     d/dt[(1 - cos t)/t] = sum (-1)^k (2k+1) t^2k / (2k+2)!
+# (t - sin t) / t^3 = sum (-1)^k t^2k / (2k+3)!     (sin t - t cos t)/t^3 = sum (-1)^k (2k+2) t^2k / (2k+3)!
+_OMC = _taylor(0, lambda k: 2 * k + 2)
+_B3 = _taylor(0, lambda k: 2 * k + 3)
+_DA = [c * (2 * k + 1) for k, c in enumerate(_OMC)]
+_DB = [c * (2 * k + 2) for k, c in enumerate(_B3)]
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -158,7 +190,9 @@ class RigidMotion:
         vectors
         :math:`n_\mathrm{eff} = \min(n, n_\mathrm{max})` (neighbouring flow vectors of a smoothed field
         are correlated, so the :math:`1/n` of independent residuals would be overconfident), plus
-        ``min_std**2 I``.
+        ``min_std**2 I``, plus the error shared by the whole cluster
+        :math:`\alpha^2\, u u^\top` (``speed_fraction`` :math:`\alpha`, see
+        :func:`rigid_motion_from_flow`).
     residual_rms : float
         Root mean square of the flow residuals :math:`\|e_i\|` (m/s).
     n_points : int
@@ -188,7 +222,7 @@ class RigidMotion:
 
 
 def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std=0.002,
-                           rotation_spread=False) -> RigidMotion:
+                           rotation_spread=False, speed_fraction=0.0) -> RigidMotion:
     r"""Fit the rigid motion of one cluster to its flow: Kabsch on :math:`X` and :math:`X + v\,\Delta t`.
 
     Parameters
@@ -209,6 +243,16 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
         (:math:`\Omega = [\omega]_\times`, in 2-D the 90° rotation times :math:`\omega`): for a
         track that follows the centroid of the *visible* surface, which is not a fixed body point,
         so a spinning object's flow at the centroid is not its velocity.
+    speed_fraction : float, >= 0
+        :math:`\alpha`: add :math:`\alpha^2\, u u^\top` (:math:`u` the fitted velocity), an error of
+        standard deviation :math:`\alpha\lVert u\rVert` along the motion *shared by every point of the
+        cluster*. The residuals measure how the flow scatters about one rigid motion; they cannot
+        see an error common to all points, and the flow of geometric correspondences (nearest
+        neighbours, ICP, graph flow) has one: a surface sliding along itself looks still, so such a
+        flow sees the motion along the surfaces' normals and loses part of the motion along the
+        surfaces, for the whole cluster alike. The loss grows with the motion, hence a fraction of
+        the speed. 0 (the default) leaves it out: the covariance then describes the flow's noise
+        only, and is overconfident for such flows (lesson 6 §5b measures it).
 
     Returns
     -------
@@ -236,6 +280,7 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
     if n_max < 1:
         raise ValueError(f"max_effective_points must be >= 1, got {max_effective_points}")
     min_std = nonnegative(min_std, "min_std")
+    speed_fraction = nonnegative(speed_fraction, "speed_fraction")
     R, t = kabsch(X, X + V * dt)
     c = X.mean(axis=0)
     u = ((R - np.eye(D)) @ c + t) / dt
@@ -243,7 +288,7 @@ def rigid_motion_from_flow(points, flow, dt, *, max_effective_points=25, min_std
     n = len(X)
     n_par = 6 if D == 3 else 3
     Se = E.T @ E / max(n - n_par / D, 1)  # the fit's n_par parameters take n_par / D dof per axis
-    cov = Se / min(n, n_max) + min_std**2 * np.eye(D)
+    cov = Se / min(n, n_max) + min_std**2 * np.eye(D) + speed_fraction**2 * np.outer(u, u)
     if D == 3:
         w = _rotation_vector(R) / dt
     else:
@@ -272,7 +317,9 @@ def detection_velocity_covariances(points, clusters, flow, detections, dt, **opt
     detections : array_like, shape (K, D)
     dt : float, > 0
     **options
-        Passed to :func:`rigid_motion_from_flow` (``max_effective_points``, ``min_std``).
+        Passed to :func:`rigid_motion_from_flow` (``max_effective_points``, ``min_std``,
+        ``speed_fraction``: without it the covariance describes the flow's scatter about the rigid
+        motion only, not the error the whole cluster shares).
 
     Returns
     -------
@@ -328,11 +375,13 @@ def _coefficients(w: np.ndarray, T: float):
     small = np.abs(th) < _SERIES
     ws = np.where(small, 1.0, w)  # avoids 0/0 in the branch not taken
     s, omc = np.sin(th), 1.0 - np.cos(th)
-    omc = np.where(small, th * th / 2.0 - th**4 / 24.0, omc)
-    A = np.where(small, w * T**2 / 2.0 - w**3 * T**4 / 24.0, omc / ws)
-    B = np.where(small, w**2 * T**3 / 6.0 - w**4 * T**5 / 120.0, T - s / ws)
-    dA = np.where(small, T**2 / 2.0 - w**2 * T**4 / 8.0, (T * s * ws - omc) / ws**2)
-    dB = np.where(small, w * T**3 / 3.0 - w**3 * T**5 / 30.0, (s - T * ws * np.cos(th)) / ws**2)
+    t2 = np.where(small, th * th, 0.0)
+    omc_t2 = _series(t2, _OMC)  # (1 - cos θ) / θ²
+    omc = np.where(small, th * th * omc_t2, omc)
+    A = np.where(small, T * th * omc_t2, omc / ws)  # T (1 - cos θ) / θ
+    B = np.where(small, T * th * th * _series(t2, _B3), T - s / ws)  # T (θ - sin θ) / θ
+    dA = np.where(small, T * T * _series(t2, _DA), (T * s * ws - omc) / ws**2)
+    dB = np.where(small, T * T * th * _series(t2, _DB), (s - T * ws * np.cos(th)) / ws**2)
     return s, omc, A, B, dA, dB
 
 

@@ -1,11 +1,16 @@
-r"""Dense scene flow from two RGB-D frames: a variational estimator in the spirit of PD-Flow.
+r"""Dense scene flow from two RGB-D frames: a variational estimator in the spirit of PD-Flow, started
+from matches.
 
 :func:`rgbd_scene_flow` estimates the 3-D velocity of every pixel of frame :math:`t` from the colour
 (grey) images *and* the depth maps of two frames, with no correspondences given: the syllabus'
 brightness constancy and depth constancy (section 2), tied to the 3-D motion by the projection
 Jacobian, plus a smoothness term (section 3). The design follows PD-Flow (Jaimez, Souiai,
 González-Jiménez and Cremers, ICRA 2015): photometric and geometric data terms, robust penalties,
-smoothing weighted down across depth edges, coarse-to-fine with warping.
+smoothing weighted down across depth edges, warping. A linearised data term only sees a displacement
+of a pixel or two, and next to a silhouette it can pull a point onto the surface behind; so, as in
+large-displacement variational flow (Brox and Malik, LDOF, 2011), the refinement starts from, and is
+tied to, a field of *matches* found by search (:mod:`flowtrack._rgbd_match`, the rigid motions of the
+depth segments :mod:`flowtrack._rgbd_segments`).
 
 The unknown
 -----------
@@ -22,14 +27,22 @@ With :math:`I_0, I_1` the grey images and :math:`D_1` the depth map at :math:`t 
 .. math::
 
     E(s) = \sum_p m_p \Big[\rho_I\Big(\frac{I_1(\pi(X_p + s_p)) - I_0(p)}{\sigma_I}\Big)
-           + \rho_D\Big(\frac{D_1(\pi(X_p + s_p)) - (Z_p + s_{p,z})}{\sigma_D}\Big)\Big]
+           + \rho_D\Big(\frac{D_1(\pi(X_p + s_p)) - (Z_p + s_{p,z})}{\sigma_D(Z_p)}\Big)\Big]
+           + \sum_p c_p\,\rho_M\big(\lVert \Sigma_p^{-1/2}(s_p - \hat s_p)\rVert\big)
            + \lambda \sum_{(p,q)\in\mathcal E} w_{pq}\,
              \rho_S\Big(\frac{\lVert s_p - s_q\rVert}{\sigma_S}\Big),
 
-- the photometric term is brightness constancy :math:`I_1(x + u) = I_0(x)`;
+- the photometric term is brightness constancy :math:`I_1(x + u) = I_0(x)` (after the brightness
+  change between the frames is removed, see below);
 - the geometric term is depth constancy in its corrected form :math:`D_1(x + u) = D_0(x) + v_Z\,\Delta t`
   (range flow: the depth seen at the new image position is the old depth plus the motion along the
-  optical axis);
+  optical axis), its scale the depth noise of a disparity-based sensor,
+  :math:`\sigma_D(Z) = \sqrt{\sigma_d^2 + (\sigma_{d2} Z^2)^2}` (``sigma_d``, ``sigma_d_z2``);
+- the match term ties :math:`s_p` to the matched displacement :math:`\hat s_p` (LDOF's matching
+  term), :math:`\Sigma_p = \mathrm{diag}(\sigma_\perp^2, \sigma_\perp^2, 2\sigma_D^2)` with
+  :math:`\sigma_\perp = \sigma_m Z_p / f` (a match is good to ``sigma_m`` pixels across the ray and to
+  the noise of two depths along it), :math:`c_p` = ``match_weight`` where the pixel is matched, 0
+  where it is not, ``hidden_weight`` where it is hidden (below);
 - :math:`\mathcal E` are the 4-neighbour edges, and :math:`w_{pq} = 1 / (1 + \lVert X_p - X_q\rVert^2 /
   d_{pq}^2)` weighs smoothing down across depth edges (an inverse 3-D neighbour distance, PD-Flow's
   choice in a smooth form), :math:`d_{pq} = \kappa\,\bar Z_{pq} / f + 2\sigma_D` the distance expected
@@ -41,7 +54,39 @@ With :math:`I_0, I_1` the grey images and :math:`D_1` the depth map at :math:`t 
   position outside the image, and, for the geometric term, no valid depth under
   :math:`\pi(X_p + s_p)` at :math:`t + \Delta t` or a depth edge there. A pixel whose warped depth is
   clearly *in front* of the moved point (:math:`D_1 < Z + s_z - \tau`, the point is hidden at
-  :math:`t + \Delta t`) is occluded: both data terms are off there.
+  :math:`t + \Delta t`) is occluded: both data terms are off there. With ``truncate_depth`` the
+  geometric term is also off where the warped depth is clearly *behind* the moved point
+  (:math:`D_1 > Z + s_z + \tau`): the point cannot be there, and a depth term would drag it onto the
+  background — the silhouette failure of a linearised depth term. :math:`\tau` = ``occlusion`` plus
+  twice the growth of :math:`\sigma_D` with depth. A pixel the matching found *hidden* at
+  :math:`t + \Delta t` (or leaving the image) has no data term at all.
+
+The start: matches
+------------------
+``init="matches"`` (the default; :mod:`flowtrack._rgbd_match`): OpenCV's DIS optical flow and a
+coarse exhaustive block search on the grey and log-depth images, both directions, the candidate with
+the lowest matching cost per pixel; a pixel is *matched* where that cost is low, its neighbourhood
+textured, the forward-backward check passes and it is not on a depth edge; it is lifted to 3-D with
+the depth at :math:`t + \Delta t` read at :math:`x + u` (of the four pixels around it, the one nearest
+its own depth). Then every depth-connected segment of frame :math:`t` is aligned rigidly (six
+parameters, robust photometric and geometric residuals, Gauss–Newton coarse to fine,
+:mod:`flowtrack._rgbd_segments`): a pixel takes its segment's rigid motion where that fits it at least
+about as well as its own match — the motion of a nearly uniform or turning face, which no pixel can
+match alone. Every pixel still without a match takes the displacement of the geodesically nearest
+matched pixel, the path length counting depth jumps (so a hidden pixel moves with its own surface).
+That field starts the refinement on the ``levels`` finest pyramid levels; the match term keeps the
+refinement near it. ``init="zero"`` is the classic coarse-to-fine scheme from zero displacement on
+every level that fits (large motions and the silhouette failure above are then out of reach); ``init``
+may also be an (H, W, 3) array of velocities (NaN: unknown) used as the match.
+
+Brightness changes
+------------------
+The gain and offset between the frames, :math:`I_1(x + u) \approx a I_0(x) + b`, are fitted robustly
+on the pixels matched with a low cost (the matching cost itself subtracts local means and does not
+see a global change), and :math:`I_1` is replaced by :math:`(I_1 - b)/a`. With ``structure_sigma``
+:math:`> 0` both images are also replaced by their texture, :math:`I - G_\sigma * I` (the
+structure-texture split of Wedel et al., 2009): the shading of a turning face changes, its texture
+does not.
 
 Linearisation
 -------------
@@ -68,11 +113,12 @@ scheme of Brox et al., 2004): with the weights
 :math:`c = \rho'(x)/(2x\sigma^2) = 1/(\sigma^2\sqrt{1 + x^2})` of the current iterate, a quadratic
 majoriser of :math:`E` is minimised, which is the sparse symmetric positive definite system
 
-.. math::  (N_p + \lambda \textstyle\sum_q W_{pq})\, s_p - \lambda \sum_q W_{pq}\, s_q
-           = N_p s^0_p - g_p \quad \text{for every pixel } p, \qquad
+.. math::  (N_p + C_p + \lambda \textstyle\sum_q W_{pq})\, s_p - \lambda \sum_q W_{pq}\, s_q
+           = N_p s^0_p - g_p + C_p \hat s_p \quad \text{for every pixel } p, \qquad
            g_p = c_I r_I a_I + c_D r_D a_D,
 
-:math:`W_{pq} = w_{pq} c_{S,pq}` — an edge-weighted grid Laplacian
+:math:`C_p` the (diagonal) reweighted match term, :math:`W_{pq} = w_{pq} c_{S,pq}` — an edge-weighted
+grid Laplacian
 (:func:`flowtrack.variational.grid_laplacian`) coupling 3×3 blocks. It is solved by conjugate
 gradients preconditioned with the 3×3 block diagonal (each block inverted in closed form), warm-started
 from the current iterate, ``cg_iterations`` iterations per reweighting. (Red-black Gauss–Seidel, the
@@ -82,7 +128,8 @@ system stiff, :math:`\lambda/\sigma_S^2 \gg c_I |a_I|^2`, and Gauss–Seidel nee
 moved at the coarse levels — where CG needs :math:`O(\sqrt\kappa)`.)
 
 Coarse-to-fine: the images are blurred and halved (depth: the mean of the valid pixels of each 2×2
-block) until the short side would drop below ``min_size``; at level :math:`\ell` the camera is
+block), ``levels`` levels (from zero: until the short side would drop below ``min_size``); the match
+field is carried down as confidence-weighted block means. At level :math:`\ell` the camera is
 :math:`f/2^\ell,\ (c + 1/2)/2^\ell - 1/2`. The displacement is in metres, so it is carried from level
 to level by bilinear interpolation without rescaling. Each level runs ``warps`` warps (images and
 depth resampled at :math:`\pi(X + s^0)` — the exact projection, not the linearised one — then
@@ -118,6 +165,9 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from ._rgbd_energy import Linearised, depth_sigma, pcg
+from ._rgbd_match import geodesic_fill, match_field
+from ._rgbd_segments import rigid_field
 from ._validation import nonnegative, positive, positive_int
 from .camera import PinholeCamera, check_camera
 
@@ -134,28 +184,71 @@ PENALTIES = ("charbonnier", "quadratic")
 
 #: weight of the smoothness edges that touch a pixel without depth at t
 _HOLE_EDGE_WEIGHT = 0.05
+#: pyramid levels refined from a match (``levels=None``): the match is good to a pixel or two
+_MATCHED_LEVELS = 2
+#: images with a shorter side start from zero: DIS's 8 px patches and the block search's windows
+#: need more pixels per object than so small an image has (OpenCV's DIS itself needs 12 px)
+_MIN_MATCH_SIZE = 64
 
 _DEFAULTS = {
-    "lam": 0.05,
+    "lam": None,
     "sigma_i": 0.02,
     "sigma_d": 0.004,
-    "sigma_s": 0.001,
+    "sigma_d_z2": None,
+    "sigma_s": None,
     "edge_scale": 3.0,
     "occlusion": 0.02,
     "penalty": "charbonnier",
     "levels": None,
     "min_size": 6,
-    "warps": 3,
+    "warps": None,
     "irls": 2,
     "cg_iterations": 15,
     "blur": 0.8,
     "use_depth": True,
     "use_color": True,
+    "init": "matches",
+    "match_weight": 1.0,
+    "sigma_m": 1.0,
+    "truncate_depth": None,
+    "depth_filter": None,
+    "fill_depth_scale": 0.005,
+    "fill_grey_scale": 1.0,
+    "hidden_weight": 0.1,
+    "fill_reach": 50.0,
+    "rigid": True,
+    "structure_sigma": 0.0,
+    "rigid_margin": 0.5,
+    "rigid_prior": 1e-2,
+    "rigid_still": 0.2,
+    "rigid_agree_px": 0.5,
+    "rigid_levels": 4,
+    "rigid_min_pixels": 40,
+    "rigid_max_pixels": 1500,
+    "match_window": 7,
+    "match_depth_weight": 0.05,
+    "match_depth_trunc": 0.1,
+    "search_radius": 28,
+    "match_cost": 3.0,
+    "match_fb": 1.0,
+    "match_sure": 1.5,
+    "match_margin": 0.002,
+    "match_max_dz": 0.1,
+    "match_texture": 0.3,
     "backend": "auto",
     "return_info": False,
 }
 
+#: defaults that depend on the start: from matches they were chosen on the training split of the
+#: held-out protocol (benchmarks/_evalscenes.py); from zero they are the classic coarse-to-fine
+#: estimator's, chosen on flowtrack.synth scenes
+_FROM_MATCHES = {"lam": 0.2, "sigma_s": 0.0005, "warps": 2, "truncate_depth": True, "sigma_d_z2": 0.0015,
+                 "depth_filter": True}
+_FROM_ZERO = {"lam": 0.05, "sigma_s": 0.001, "warps": 3, "truncate_depth": False, "sigma_d_z2": 0.0,
+              "depth_filter": False}
+
 BACKENDS = ("auto", "numba", "numpy")
+INITS = ("zero", "matches")
 _KERNELS: list = []
 
 
@@ -326,163 +419,6 @@ def _sample(stack: np.ndarray, x: np.ndarray, y: np.ndarray):
 
 
 # --------------------------------------------------------------------------------------------------
-# the linearised problem of one warp and its solver
-# --------------------------------------------------------------------------------------------------
-def _rho(x2, penalty):
-    """Penalty of squared normalised residuals."""
-    if penalty == "quadratic":
-        return x2
-    return 2.0 * (np.sqrt(1.0 + x2) - 1.0)
-
-
-def _rho_weight(x2, penalty):
-    """d rho / d(x^2): the IRLS weight."""
-    if penalty == "quadratic":
-        return np.ones_like(x2)
-    return 1.0 / np.sqrt(1.0 + x2)
-
-
-class _Linearised:
-    """The energy of one warp with the data terms linearised around ``s0``.
-
-    ``a_i, a_d`` (H, W, 3), ``r_i, r_d`` (H, W) residuals at ``s0``, ``m_i, m_d`` (H, W) 0/1 data
-    masks, ``wv (H-1, W), wh (H, W-1)`` geometric edge weights, ``lam``, the scales and the penalty:
-
-    E(s) = sum m_i rho((r_i + a_i.(s - s0)) / sigma_i) + m_d rho((r_d + a_d.(s - s0)) / sigma_d)
-           + lam sum_edges w rho(|s_p - s_q| / sigma_s).
-    """
-
-    def __init__(self, s0, a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, lam, sigma_i, sigma_d, sigma_s, penalty):
-        self.s0, self.a_i, self.r_i, self.m_i = s0, a_i, r_i, m_i
-        self.a_d, self.r_d, self.m_d = a_d, r_d, m_d
-        self.wv, self.wh = wv, wh
-        self.lam, self.sigma_i, self.sigma_d, self.sigma_s = lam, sigma_i, sigma_d, sigma_s
-        self.penalty = penalty
-
-    def residuals(self, s):
-        ds = s - self.s0
-        return (self.r_i + np.sum(self.a_i * ds, axis=-1), self.r_d + np.sum(self.a_d * ds, axis=-1))
-
-    def energy(self, s) -> float:
-        ri, rd = self.residuals(s)
-        pen = self.penalty
-        data = np.sum(self.m_i * _rho((ri / self.sigma_i) ** 2, pen))
-        data += np.sum(self.m_d * _rho((rd / self.sigma_d) ** 2, pen))
-        gv = np.sum((s[1:] - s[:-1]) ** 2, axis=-1) / self.sigma_s**2
-        gh = np.sum((s[:, 1:] - s[:, :-1]) ** 2, axis=-1) / self.sigma_s**2
-        smooth = np.sum(self.wv * _rho(gv, pen)) + np.sum(self.wh * _rho(gh, pen))
-        return float(data + self.lam * smooth)
-
-    def weights(self, s):
-        """IRLS weights at ``s``: data (c_i, c_d) per pixel, smoothness (W_v, W_h) per edge."""
-        ri, rd = self.residuals(s)
-        pen = self.penalty
-        c_i = self.m_i * _rho_weight((ri / self.sigma_i) ** 2, pen) / self.sigma_i**2
-        c_d = self.m_d * _rho_weight((rd / self.sigma_d) ** 2, pen) / self.sigma_d**2
-        gv = np.sum((s[1:] - s[:-1]) ** 2, axis=-1) / self.sigma_s**2
-        gh = np.sum((s[:, 1:] - s[:, :-1]) ** 2, axis=-1) / self.sigma_s**2
-        Wv = self.lam * self.wv * _rho_weight(gv, pen) / self.sigma_s**2
-        Wh = self.lam * self.wh * _rho_weight(gh, pen) / self.sigma_s**2
-        return c_i, c_d, Wv, Wh
-
-    def system(self, s):
-        """The quadratic majoriser at ``s``: ``(N, rhs, Wv, Wh)`` with 0.5 grad = A s - rhs."""
-        c_i, c_d, Wv, Wh = self.weights(s)
-        a_i, a_d = self.a_i, self.a_d
-        N = c_i[..., None, None] * a_i[..., :, None] * a_i[..., None, :]
-        N += c_d[..., None, None] * a_d[..., :, None] * a_d[..., None, :]
-        # residual r + a.(s - s0) = a.s + (r - a.s0): rhs = N s0 - (c_i r_i a_i + c_d r_d a_d)
-        rhs = np.einsum("...ij,...j->...i", N, self.s0)
-        rhs -= (c_i * self.r_i)[..., None] * a_i + (c_d * self.r_d)[..., None] * a_d
-        return N, rhs, Wv, Wh
-
-    def gradient(self, s):
-        """Exact gradient of :meth:`energy` (the IRLS system at ``s`` touches E to first order)."""
-        N, rhs, Wv, Wh = self.system(s)
-        return 2.0 * (_apply(N, Wv, Wh, s) - rhs)
-
-
-def _neighbour_weighted(s, Wv, Wh):
-    """sum_q W_pq s_q for s (H, W, 3); Wv (H-1, W), Wh (H, W-1)."""
-    out = np.zeros_like(s)
-    t = Wv[..., None] * s[1:]
-    out[:-1] += t
-    t = Wv[..., None] * s[:-1]
-    out[1:] += t
-    t = Wh[..., None] * s[:, 1:]
-    out[:, :-1] += t
-    t = Wh[..., None] * s[:, :-1]
-    out[:, 1:] += t
-    return out
-
-
-def _degree(Wv, Wh, shape):
-    deg = np.zeros(shape)
-    deg[:-1] += Wv
-    deg[1:] += Wv
-    deg[:, :-1] += Wh
-    deg[:, 1:] += Wh
-    return deg
-
-
-def _apply(N, Wv, Wh, s):
-    """A s with A = blockdiag(N_p) + (L_W kron I_3)."""
-    deg = _degree(Wv, Wh, s.shape[:2])
-    return np.einsum("...ij,...j->...i", N, s) + deg[..., None] * s - _neighbour_weighted(s, Wv, Wh)
-
-
-def _inverse_sym3(M):
-    """Inverses of symmetric positive definite 3×3 blocks (..., 3, 3) by the adjugate."""
-    a, b, c = M[..., 0, 0], M[..., 0, 1], M[..., 0, 2]
-    d, e, f = M[..., 1, 1], M[..., 1, 2], M[..., 2, 2]
-    A = d * f - e * e
-    B = c * e - b * f
-    C = b * e - c * d
-    D = a * f - c * c
-    E = b * c - a * e
-    F = a * d - b * b
-    det = a * A + b * B + c * C
-    inv = np.empty_like(M)
-    r = 1.0 / det
-    inv[..., 0, 0] = A * r
-    inv[..., 0, 1] = inv[..., 1, 0] = B * r
-    inv[..., 0, 2] = inv[..., 2, 0] = C * r
-    inv[..., 1, 1] = D * r
-    inv[..., 1, 2] = inv[..., 2, 1] = E * r
-    inv[..., 2, 2] = F * r
-    return inv
-
-
-def _pcg(N, rhs, Wv, Wh, s, n_iter):
-    """``n_iter`` block-Jacobi preconditioned CG iterations on A s = rhs (numpy); ``s`` updated in place."""
-    deg = _degree(Wv, Wh, s.shape[:2])
-    M = N.copy()
-    for k in range(3):
-        M[..., k, k] += deg
-    Minv = _inverse_sym3(M)
-    precond = lambda r: np.einsum("...ij,...j->...i", Minv, r)  # noqa: E731
-    r = rhs - _apply(N, Wv, Wh, s)
-    z = precond(r)
-    p = z.copy()
-    rz = float(np.sum(r * z))
-    for _ in range(n_iter):
-        if rz <= 0.0:
-            break
-        q = _apply(N, Wv, Wh, p)
-        pq = float(np.sum(p * q))
-        if pq <= 0.0:
-            break
-        alpha = rz / pq
-        s += alpha * p
-        r -= alpha * q
-        z = precond(r)
-        rz_new = float(np.sum(r * z))
-        p = z + (rz_new / rz) * p
-        rz = rz_new
-    return s
-
-
-# --------------------------------------------------------------------------------------------------
 # validation
 # --------------------------------------------------------------------------------------------------
 def _check_image(img, name):
@@ -526,11 +462,27 @@ def _options(options):
         raise TypeError(f"rgbd_scene_flow got unknown option(s) {sorted(unknown)}; "
                         f"known: {sorted(_DEFAULTS)}")
     o = {**_DEFAULTS, **options}
+    # the defaults that depend on the start (None: not given)
+    by_start = _FROM_ZERO if isinstance(o["init"], str) and o["init"] == "zero" else _FROM_MATCHES
+    for k, v in by_start.items():
+        if o[k] is None:
+            o[k] = v
     # lam = 0 leaves every pixel's aperture null space (rank-2 data term) unresolved: a singular system
     o["lam"] = positive(o["lam"], "lam")
     for k in ("sigma_i", "sigma_d", "sigma_s", "edge_scale", "occlusion"):
         o[k] = positive(o[k], k)
     o["blur"] = nonnegative(o["blur"], "blur")
+    o["structure_sigma"] = nonnegative(o["structure_sigma"], "structure_sigma")
+    o["match_weight"] = nonnegative(o["match_weight"], "match_weight")
+    o["sigma_d_z2"] = nonnegative(o["sigma_d_z2"], "sigma_d_z2")
+    o["sigma_m"] = positive(o["sigma_m"], "sigma_m")
+    o["hidden_weight"] = nonnegative(o["hidden_weight"], "hidden_weight")
+    for k in ("match_depth_weight", "search_radius", "match_texture", "match_margin"):
+        o[k] = nonnegative(o[k], k)
+    for k in ("match_depth_trunc", "match_cost", "match_fb", "match_sure", "match_max_dz", "fill_depth_scale",
+              "fill_grey_scale", "fill_reach"):
+        o[k] = positive(o[k], k)
+    o["match_window"] = positive_int(o["match_window"], "match_window")
     if o["penalty"] not in PENALTIES:
         raise ValueError(f"penalty must be one of {PENALTIES}, got {o['penalty']!r}")
     if o["levels"] is not None:
@@ -538,13 +490,20 @@ def _options(options):
     o["min_size"] = positive_int(o["min_size"], "min_size", minimum=2)
     for k in ("warps", "irls", "cg_iterations"):
         o[k] = positive_int(o[k], k)
-    for k in ("use_depth", "use_color", "return_info"):
+    for k in ("use_depth", "use_color", "return_info", "truncate_depth", "rigid", "depth_filter"):
         if not isinstance(o[k], (bool, np.bool_)):
             raise TypeError(f"{k} must be a bool, got {type(o[k]).__name__}")
     if o["backend"] not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {o['backend']!r}")
     if o["backend"] == "numba" and _kernels() is None:
         raise ValueError("backend='numba' needs numba, which is not importable")
+    if isinstance(o["init"], str):
+        if o["init"] not in INITS:
+            raise ValueError(f"init must be one of {INITS} or an (H, W, 3) velocity array, got {o['init']!r}")
+    else:
+        init = np.asarray(o["init"])
+        if init.ndim != 3 or init.shape[2] != 3 or not np.issubdtype(init.dtype, np.number):
+            raise ValueError(f"init must be one of {INITS} or an (H, W, 3) velocity array, got {init.shape}")
     if not (o["use_depth"] or o["use_color"]):
         raise ValueError("use_depth and use_color cannot both be False (no data term)")
     return o
@@ -584,6 +543,48 @@ def _upsample(s, shape):
     return out
 
 
+def _initial_match(init, shape, dt):
+    """An explicit initial velocity field as a match: (H, W, 3) velocities, NaN where unknown."""
+    v = np.asarray(init, dtype=np.float64)
+    ok = np.isfinite(v).all(axis=-1)
+    return {"m": np.where(ok[..., None], v * dt, 0.0), "conf": ok.astype(np.float64),
+            "hidden": np.zeros(shape, bool)}
+
+
+def _match_pyramid(target, weight, hidden, n):
+    """Match targets, weights and hidden masks on every level (weighted 2×2 means; hidden: majority)."""
+    out = [(target, weight, hidden)]
+    h = hidden.astype(np.float64)
+    for _ in range(1, n):
+        ws = _down(weight)
+        target = np.where(ws[..., None] > 0,
+                          _down(weight[..., None] * target) / np.maximum(ws, 1e-300)[..., None], 0.0)
+        weight = ws / 4.0
+        h = _down(h) / 4.0
+        out.append((target, weight, h > 0.5))
+    return out
+
+
+def _filter_depth(D, o):
+    """Each valid depth replaced by the mean of the valid depths of its 3×3 neighbourhood on the same
+    surface (within the occlusion threshold of it). The noise of a single reading would otherwise
+    favour sub-pixel shifts of a static surface: sampling a noisy depth map between pixels averages
+    the noise down, so a depth term prefers to land between them."""
+    valid = D > 0
+    tau = o["occlusion"] + 2.0 * (depth_sigma(D, o) - o["sigma_d"])
+    H, W = D.shape
+    P = np.pad(D, 1)
+    num = np.zeros((H, W))
+    den = np.zeros((H, W))
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            q = P[dy:dy + H, dx:dx + W]
+            w = (q > 0) & (np.abs(q - D) <= tau)
+            num += np.where(w, q, 0.0)
+            den += w
+    return np.where(valid, num / np.maximum(den, 1.0), 0.0)
+
+
 def _edge_weights(X, valid, intr, sigma_d, edge_scale):
     """w_pq = 1 / (1 + |X_p - X_q|^2 / d_pq^2); a small constant where an end has no depth."""
     f = 0.5 * (intr[0] + intr[1])
@@ -598,8 +599,11 @@ def _edge_weights(X, valid, intr, sigma_d, edge_scale):
     return out
 
 
-def _level(I0, D0, I1, D1, intr, s, o):
+def _level(I0, D0, I1, D1, intr, s, o, match=None):
     H, W = I0.shape
+    m_t, c_m, hidden = (None, None, None) if match is None else match
+    if c_m is not None and not c_m.any():
+        m_t = c_m = None
     K = None if o["backend"] == "numpy" else _kernels()
     fx, fy, cx, cy = intr
     valid0 = D0 > 0
@@ -607,6 +611,14 @@ def _level(I0, D0, I1, D1, intr, s, o):
     Z = np.where(valid0, D0, 1.0)  # placeholder depth 1 at invalid pixels (never used: no data there)
     X = np.stack([(xx - cx) / fx * Z, (yy - cy) / fy * Z, Z], axis=-1)
     wv, wh = _edge_weights(X, valid0, intr, o["sigma_d"], o["edge_scale"])
+    # depth noise of a disparity-based sensor grows with Z^2
+    sig_d = depth_sigma(Z, o)
+    tau_occ = o["occlusion"] + 2.0 * (sig_d - o["sigma_d"])
+    sig_m = None
+    if m_t is not None:
+        # a match is good to sigma_m pixels across the ray; along it, to the noise of two depths
+        lat = o["sigma_m"] * Z / (0.5 * (fx + fy))
+        sig_m = np.stack([lat, lat, np.broadcast_to(np.sqrt(2.0) * sig_d, Z.shape)], axis=-1)
     I0x, I0y = _grad(I0)
     I1x, I1y = _grad(I1)
     valid1 = D1 > 0
@@ -634,9 +646,16 @@ def _level(I0, D0, I1, D1, intr, s, o):
         Iw, Ixw, Iyw, Dw, Dxw, Dyw, okw = np.moveaxis(smp, -1, 0)
         ok_d = inside & (okw > 0.999)
         # occluded at t+1: something clearly in front of the moved point
-        occluded = ok_d & (Dw < Zw - o["occlusion"])
+        occluded = ok_d & (Dw < Zw - tau_occ)
         m_i = (inside & ~occluded) * use_i
         m_d = (ok_d & ~occluded) * use_d
+        if hidden is not None:
+            m_i = m_i * ~hidden
+            m_d = m_d * ~hidden
+        if o["truncate_depth"]:
+            # a surface clearly behind the moved point: the warp is wrong there or the point is on a
+            # silhouette; the depth term would drag it onto the background
+            m_d = m_d * (Dw <= Zw + tau_occ)
         gx = 0.5 * (Ixw + I0x)
         gy = 0.5 * (Iyw + I0y)
         Xj = np.concatenate([Xw[..., :2], Zw[..., None]], axis=-1)
@@ -645,27 +664,76 @@ def _level(I0, D0, I1, D1, intr, s, o):
         a_d[..., 2] -= 1.0
         r_i = np.where(inside, Iw - I0, 0.0)
         r_d = np.where(ok_d, Dw - Zw, 0.0)
-        prob = _Linearised(s.copy(), a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, o["lam"],
-                           o["sigma_i"], o["sigma_d"], o["sigma_s"], o["penalty"])
+        prob = Linearised(s.copy(), a_i, r_i, m_i, a_d, r_d, m_d, wv, wh, o["lam"],
+                           o["sigma_i"], sig_d, o["sigma_s"], o["penalty"],
+                           m_t=m_t, c_m=c_m, sigma_m=sig_m)
         for _ in range(o["irls"]):
             if K is None:
                 N, rhs, Wv, Wh = prob.system(s)
-                _pcg(N, rhs, Wv, Wh, s, o["cg_iterations"])
+                pcg(N, rhs, Wv, Wh, s, o["cg_iterations"])
             else:
                 c_i, c_d, Wv, Wh = prob.weights(s)
                 M = np.empty((H, W, 6))
                 rhs = np.empty((H, W, 3))
                 K.assemble(a_i, a_d, c_i, c_d, r_i, r_d, prob.s0, Wv, Wh, M, rhs)
+                prob.add_match(M, rhs, s)
                 K.pcg(M, rhs, Wv, Wh, s, o["cg_iterations"])
     return s, prob
+
+
+def _estimate(I0, D0, I1, D1, cam, o, match):
+    """Coarse to fine from zero, or from a match: ``{"m": (H, W, 3) displacements (m), "conf": (H, W)
+    confidence in [0, 1] (0: no match), "hidden": (H, W) bool (the point is hidden at t+1: no data
+    term, the displacement of the nearest matched pixel of its surface)}``; returns (s, problem, levels)."""
+    H, W = I0.shape
+    levels = o["levels"]
+    if levels is None and match is not None:
+        levels = _MATCHED_LEVELS
+    n = _n_levels(H, W, o["min_size"], levels)
+    pyr = _pyramid(I0, D0, I1, D1, cam, n)
+    mpyr = [None] * n
+    s = None
+    if match is not None:
+        known = (match["conf"] > 0) & ~match["hidden"]
+        sig_d = depth_sigma(D0, o)
+        fill, dist = geodesic_fill(match["m"], known, D0, I0,
+                                   depth_scale=o["fill_depth_scale"] + 2.0 * (sig_d - o["sigma_d"]),
+                                   grey_scale=o["fill_grey_scale"], edge_jump=o["occlusion"],
+                                   kernels=None if o["backend"] == "numpy" else _kernels())
+        # a surface without any matched pixel within reach keeps its own (unconfident) match; a pixel
+        # moved rigidly with its segment keeps that motion even where it has no data term
+        keep = (dist > o["fill_reach"]) & ~match["hidden"]
+        if "rigid" in match:
+            keep |= match["rigid"]
+        fill = np.where(keep[..., None], match["m"], fill)
+        target = np.where(known[..., None], match["m"], fill)
+        weight = (o["match_weight"] * np.where(known, match["conf"], 0.0)
+                  + o["hidden_weight"] * match["hidden"])
+        mpyr = _match_pyramid(target, weight, match["hidden"], n)
+        match["init"] = fill
+        s = fill
+        for _ in range(n - 1):
+            s = _down(s) / 4.0
+    prob = None
+    for lev in range(n - 1, -1, -1):
+        Il0, Dl0, Il1, Dl1, intr = pyr[lev]
+        h, w = Il0.shape
+        if s is None:
+            s = np.zeros((h, w, 3))
+        elif s.shape[:2] != (h, w):
+            s = _upsample(s, (h, w))
+        s, prob = _level(Il0, Dl0, Il1, Dl1, intr, s, o, mpyr[lev])
+    return s, prob, n
 
 
 def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     r"""Dense 3-D velocities of the pixels of an RGB-D frame from it and the next frame.
 
-    Minimises the energy of the module documentation (photometric + geometric data terms linearised
-    through the projection Jacobian, robust smoothness weighted down across depth edges) coarse to
-    fine with warping, by IRLS and block-Jacobi preconditioned conjugate gradients.
+    Finds a field of matches (optical flow by search, lifted with the depths; the rigid motion of each
+    depth-connected surface), then minimises the energy of the module documentation (photometric +
+    geometric data terms linearised through the projection Jacobian, a term tying the field to the
+    matches, robust smoothness weighted down across depth edges) on the finest pyramid levels with
+    warping, by IRLS and block-Jacobi preconditioned conjugate gradients.
 
     Parameters
     ----------
@@ -679,26 +747,50 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     dt : float, > 0
         Time between the frames (s).
     **options
-        ``lam`` (0.05): smoothness weight :math:`\lambda`, > 0 (without smoothing each pixel's
-        data term has rank 2 and the system is singular: the aperture problem).
-        ``sigma_i`` (0.02): photometric scale (grey levels in [0, 1]); residuals well above it are
-        treated as outliers by the Charbonnier penalty.
-        ``sigma_d`` (0.004 m): geometric scale (depth noise).
-        ``sigma_s`` (0.001 m): smoothness scale: neighbour displacement differences well above it are
-        discontinuities.
-        ``edge_scale`` (3.0): :math:`\kappa` of the edge weights :math:`w_{pq}`, in pixel footprints.
-        ``occlusion`` (0.02 m): a warped depth this much in front of the moved point marks it occluded.
-        ``penalty`` (``"charbonnier"``): or ``"quadratic"`` (every term squared: the weights are
-        constant and each warp minimises its linearised energy, up to the CG iterations).
-        ``levels`` (None: as many as fit): pyramid levels; ``min_size`` (6): smallest side of the
-        coarsest level (large motions need deep pyramids). ``warps`` (3), ``irls`` (2),
+        Where two defaults are given, the first applies from matches (chosen on the training split
+        of ``benchmarks/_evalscenes.py``), the second with ``init="zero"`` (the classic estimator).
+
+        *The start.* ``init`` (``"matches"``): ``"matches"``, ``"zero"`` (coarse to fine from zero
+        displacement; by default an image under 64 px on a side starts from zero) or an (H, W, 3) array of
+        velocities (m/s, NaN: unknown) used as the match. ``match_weight`` (1.0) and ``sigma_m``
+        (1.0 px): weight and scale of the match term; ``hidden_weight`` (0.1): its weight at hidden
+        pixels (tied to their surface's motion). ``rigid`` (True): move well-aligned depth segments
+        rigidly. The matching's own thresholds (``search_radius`` 28 px, ``match_window``,
+        ``match_depth_weight``, ``match_depth_trunc``, ``match_cost``, ``match_fb``, ``match_sure``,
+        ``match_margin``, ``match_max_dz``, ``match_texture``; ``fill_depth_scale``,
+        ``fill_grey_scale``, ``fill_reach``; ``rigid_margin``, ``rigid_agree_px``,
+        ``rigid_prior``, ``rigid_still``, ``rigid_levels``, ``rigid_min_pixels``,
+        ``rigid_max_pixels``) are documented in :mod:`flowtrack._rgbd_match` and
+        :mod:`flowtrack._rgbd_segments`.
+
+        *The energy.* ``lam`` (0.2 / 0.05): smoothness weight :math:`\lambda`, > 0 (without
+        smoothing each pixel's data term has rank 2 and the system is singular: the aperture
+        problem). ``sigma_i`` (0.02): photometric scale (grey levels in [0, 1]); residuals well above
+        it are treated as outliers by the Charbonnier penalty. ``sigma_d`` (0.004 m) and
+        ``sigma_d_z2`` (0.0015 / 0 m per m²): geometric scale :math:`\sigma_D(Z)`.
+        ``sigma_s`` (0.0005 / 0.001 m): smoothness scale: neighbour displacement differences well
+        above it are discontinuities. ``edge_scale`` (3.0): :math:`\kappa` of the edge weights
+        :math:`w_{pq}`, in pixel footprints. ``occlusion`` (0.02 m): a warped depth this much in
+        front of the moved point marks it occluded. ``truncate_depth`` (True / False): no geometric
+        term where the warped depth is this much behind the moved point. ``penalty``
+        (``"charbonnier"``): or ``"quadratic"`` (every term squared: the weights are constant and
+        each warp minimises its linearised energy, up to the CG iterations). ``use_color``,
+        ``use_depth`` (True): switch a data term off (ablation).
+
+        *The images.* ``blur`` (0.8 px): Gaussian pre-smoothing of the images. ``structure_sigma``
+        (0: off): replace both images by their texture :math:`I - G_\sigma * I`.
+        ``depth_filter`` (True / False): replace each depth by the mean of its 3×3 neighbours on the
+        same surface.
+
+        *The solver.* ``levels`` (None: 2 from matches, as many as fit from zero): pyramid levels;
+        ``min_size`` (6): smallest side of the coarsest level. ``warps`` (2 / 3), ``irls`` (2),
         ``cg_iterations`` (15): per level, warps; per warp, reweightings; per reweighting, CG
-        iterations. ``blur`` (0.8 px): Gaussian pre-smoothing
-        of the images. ``use_color``, ``use_depth`` (True): switch a data term off (ablation).
-        ``backend`` (``"auto"``): ``"numba"`` (compiled loops, :mod:`flowtrack._rgbd_kernels`),
-        ``"numpy"`` (vectorised, about 5x slower) or ``"auto"`` (numba when importable).
-        ``return_info`` (False): also return a dict with ``levels`` and the finest level's
-        linearised problem (``problem``, for tests and teaching).
+        iterations. ``backend`` (``"auto"``): ``"numba"`` (compiled loops,
+        :mod:`flowtrack._rgbd_kernels`), ``"numpy"`` (vectorised, about 5x slower) or ``"auto"``
+        (numba when importable). ``return_info`` (False): also return a dict with ``levels``, the
+        finest level's linearised problem (``problem``, for tests and teaching) and the ``match``
+        (its field ``m``, confidence ``conf``, ``hidden`` mask, optical ``flow``, brightness
+        ``gain``, the segments and which pixels moved rigidly).
 
     Returns
     -------
@@ -724,25 +816,42 @@ def rgbd_scene_flow(rgb_t, depth_t, rgb_t1, depth_t1, cam, dt, **options):
     if cam.width is not None and cam.height is not None and (cam.height, cam.width) != shape:
         raise ValueError(f"cam is for {cam.height}×{cam.width} images, the images are {shape[0]}×{shape[1]}")
     dt = positive(dt, "dt")
+    if "init" not in options and min(shape) < _MIN_MATCH_SIZE:
+        options = {**options, "init": "zero"}  # too small to match: the classic estimator
     o = _options(options)
+    if not isinstance(o["init"], str) and np.shape(o["init"])[:2] != shape:
+        raise ValueError(f"init must have shape {(*shape, 3)} (the image's), got {np.shape(o['init'])}")
     I0, I1 = grey_image(I0, "rgb_t"), grey_image(I1, "rgb_t1")
     if o["blur"] > 0:
         I0 = ndimage.gaussian_filter(I0, o["blur"], mode="nearest")
         I1 = ndimage.gaussian_filter(I1, o["blur"], mode="nearest")
-    H, W = shape
-    n = _n_levels(H, W, o["min_size"], o["levels"])
-    pyr = _pyramid(I0, D0, I1, D1, cam, n)
-    s = None
-    prob = None
-    for lev in range(n - 1, -1, -1):
-        Il0, Dl0, Il1, Dl1, intr = pyr[lev]
-        h, w = Il0.shape
-        s = np.zeros((h, w, 3)) if s is None else _upsample(s, (h, w))
-        s, prob = _level(Il0, Dl0, Il1, Dl1, intr, s, o)
+    if o["depth_filter"]:
+        D0, D1 = _filter_depth(D0, o), _filter_depth(D1, o)
+    match = None
+    if not isinstance(o["init"], str):
+        match = _initial_match(o["init"], shape, dt)
+    elif o["init"] == "matches":
+        K = None if o["backend"] == "numpy" else _kernels()
+        intr = (cam.fx, cam.fy, cam.cx, cam.cy)
+        match = match_field(I0, D0, I1, D1, intr, o, K)
+        a, b = match["gain"]
+        I1n = (I1 - b) / a
+        if o["structure_sigma"] > 0:
+            # structure-texture split (Wedel et al. 2009): the shading of a turning face changes
+            # between the frames, its texture does not; the photometric terms see the texture
+            T0 = I0 - ndimage.gaussian_filter(I0, o["structure_sigma"], mode="nearest")
+            T1 = I1n - ndimage.gaussian_filter(I1n, o["structure_sigma"], mode="nearest")
+        else:
+            T0, T1 = I0, I1n
+        if o["rigid"]:
+            pyr = _pyramid(T0, D0, T1, D1, cam, _n_levels(*shape, o["min_size"], o["rigid_levels"]))
+            match = rigid_field(match, I0, D0, I1, D1, pyr, intr, o)
+        I0, I1 = T0, T1
+    s, prob, n = _estimate(I0, D0, I1, D1, cam, o, match)
     v = s / dt
     v[~(D0 > 0)] = np.nan
     if o["return_info"]:
-        return v, {"levels": n, "problem": prob}
+        return v, {"levels": n, "problem": prob, "match": match}
     return v
 
 

@@ -42,7 +42,7 @@ __all__ = ["run_tracker", "score_run", "tracking_ablation"]
 
 def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: Sequence | None = None,
                 velocity_covs: Sequence | None = None, *, ahead: int = 5,
-                position_covs: Sequence | None = None) -> dict:
+                position_covs: Sequence | None = None, yaw_rates: Sequence | None = None) -> dict:
     """Step ``tracker`` through the frames; record reported positions and ``ahead``-frame predictions.
 
     Parameters
@@ -55,6 +55,8 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
     position_covs : sequence of (array_like, shape (N_t, dim, dim), or None), optional
         Each detection's position covariance (``step(..., position_covs=)``; a None entry: the
         tracker's R for that frame).
+    yaw_rates : sequence of (array_like, shape (N_t,), or None), optional
+        Each detection's measured yaw rate (``step(..., yaw_rates=)``).
 
     Returns
     -------
@@ -67,7 +69,7 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
     ahead = positive_int(ahead, "ahead")
     T = len(detections)
     for name, seq in (("velocities", velocities), ("velocity_covs", velocity_covs),
-                      ("position_covs", position_covs)):
+                      ("position_covs", position_covs), ("yaw_rates", yaw_rates)):
         if seq is not None and len(seq) != T:
             raise ValueError(f"{name} must have one entry per frame ({T}), got {len(seq)}")
     hyp, pred, tracks = [], [], []
@@ -75,7 +77,8 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
     for t in range(T):
         V = None if velocities is None else velocities[t]
         given = {"velocity_covs": None if velocity_covs is None else velocity_covs[t],
-                 "position_covs": None if position_covs is None else position_covs[t]}
+                 "position_covs": None if position_covs is None else position_covs[t],
+                 "yaw_rates": None if yaw_rates is None else yaw_rates[t]}
         reported = tracker.step(detections[t], V, **{k: v for k, v in given.items() if v is not None})
         live = tracker.tracks
         ahead_of = tracker.predict_ahead(ahead)
@@ -126,7 +129,8 @@ def score_run(run: dict, truth: Sequence[dict], max_dist: float) -> dict:
 
 
 def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r, dim=3, ahead=5,
-                      max_dist=0.1, tracker_options=None, flow_options=None, position_covs=None) -> dict:
+                      max_dist=0.1, tracker_options=None, flow_options=None, position_covs=None,
+                      yaw_rates=None) -> dict:
     r"""Position-only vs flow-aided tracking on the same detections.
 
     Parameters
@@ -156,6 +160,9 @@ def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r,
         The detections' position covariances (e.g.
         :func:`flowtrack.pipeline.occlusion_position_covariances`), used by the flow-aided run only
         (its filter takes per-detection covariances); position-only tracking keeps ``r``.
+    yaw_rates : sequence of (array_like, shape (N_t,), or None), optional
+        The detections' measured yaw rates, for the flow-aided run (its turn-rate tracks start from
+        them).
 
     Returns
     -------
@@ -167,6 +174,7 @@ def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r,
     runs = {
         "position_only": run_tracker(MultiObjectTracker(dt, q, r, dim, **base), detections, ahead=ahead),
         "flow_aided": run_tracker(MultiObjectTracker(dt, q, r, dim, **base, **flow), detections, velocities,
-                                  velocity_covs, ahead=ahead, position_covs=position_covs),
+                                  velocity_covs, ahead=ahead, position_covs=position_covs,
+                                  yaw_rates=yaw_rates),
     }
     return {k: score_run(v, truth, max_dist) for k, v in runs.items()}

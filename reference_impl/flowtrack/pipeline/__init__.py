@@ -51,15 +51,23 @@ a revealed one next to the object's warped surface joins it. Then
     u = \frac{\operatorname{mean}\{B_{t+1}(p) : \ell_{t+1}(p) = k\}
             - \operatorname{mean}\{B_t(p) : \ell_t(p) = k\}}{\Delta t},
     \qquad
-    C_u = C_v + \kappa\,(u - \bar v)(u - \bar v)^\top ,
+    C_u = C_e + \Big(\sigma_u^2 + f^2\lVert\bar v\rVert^2\,\frac{n_0}{n}\Big) I
+          + \kappa\,(u - \bar v)(u - \bar v)^\top ,
 
-with :math:`B_t(p)` the back-projection of pixel p. :math:`C_v` is the flow-residual covariance
-(:func:`flowtrack.motion.detection_velocity_covariances`); the gap :math:`u - \bar v` between the
-visible centroid's and the material's velocity is the *measured* visible-extent change, and
-:math:`\kappa` (``extent_change_inflation``, 4: the gap as a two-standard-deviation error) widens
-the covariance along it. Without a change the gap is the pixel-sampling noise (a few mm/s) and
-:math:`u \approx \bar v`; with one, the filter learns the centroid's motion yet gates and coasts
-with the object's (an object hidden while it slowed would otherwise reappear outside its gate).
+with :math:`B_t(p)` the back-projection of pixel p. The covariance describes :math:`u` itself:
+:math:`C_e` is the flow's scatter about its cluster's rigid motion
+(:func:`flowtrack.motion.detection_velocity_covariances`), the noise the labels carried by the flow
+inherit; the second term (the demo's ``visible_velocity_std`` :math:`\sigma_u` and
+``visible_velocity_speed_fraction`` f, :math:`n_0` = 100 points, n the piece's) is the error the
+whole piece shares, which no residual can see: surface revealed or lost at the outline as it sweeps
+:math:`\lVert\bar v\rVert\Delta t` per frame that no warped point marks, larger for a small or
+ragged piece (much outline for its area); the gap
+:math:`u - \bar v` between the visible centroid's and the material's velocity is the *measured*
+visible-extent change, and :math:`\kappa` (``extent_change_inflation``, 4: the gap as a
+two-standard-deviation error) widens the covariance along it. Without a change the gap is the
+pixel-sampling noise (a few mm/s) and :math:`u \approx \bar v`; with one, the filter learns the
+centroid's motion yet gates and coasts with the object's (an object hidden while it slowed would
+otherwise reappear outside its gate).
 
 **The position of an occluded centroid.** The same surface change moves the detection itself:
 while a nearer surface hides part of an object, the visible centroid sits toward the visible side,

@@ -345,6 +345,12 @@ def occlusion_position_covariances(points, pieces, depth_t, camera, r, *, scale:
     touching points, lifted to 3-D as :math:`(u_x/f_x,\ u_y/f_y,\ 0)` normalised. A piece with fewer
     than ``min_fraction`` of its points (or fewer than 3) touching keeps R.
 
+    The offset is one-sided, of known sign: the visible centroid lies *away* from the occluder. The
+    widened :math:`R_k` treats it as zero-mean noise, which keeps the track in the gate and the
+    association, but the update still moves the track toward the visible side by the gain times the
+    offset (lesson 6 §5e measures it). Shifting the detection toward the occluder would need the
+    hidden extent, which is what the camera cannot see, so the mean is left alone.
+
     Parameters
     ----------
     points : array_like, shape (N, 3)
@@ -456,8 +462,8 @@ def visible_centroid_velocities(points, pieces, flow, depth_t, depth_t1, camera,
     radius : float, > 0
         Farthest a pixel may be from its nearest (warped) cloud point and still take its label (m).
     velocity_covs : array_like, shape (K, 3, 3), optional
-        Covariance of each piece's mean flow (:func:`flowtrack.motion.detection_velocity_covariances`);
-        a NaN row stays NaN.
+        Covariance :math:`C_k` of each detection's visible-centroid velocity before the visible-extent
+        change (the demo's is described in :mod:`flowtrack.pipeline`); a NaN row stays NaN.
     inflation : float, >= 0
         :math:`\kappa`.
     min_pixels : int, >= 1

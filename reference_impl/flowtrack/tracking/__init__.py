@@ -47,7 +47,8 @@ an EKF), so a turning object is extrapolated along its arc; ``step(..., position
 detection its own position covariance (an occluded object's visible centroid is off its centre).
 These options only choose other parts for the same loop: :class:`MotionPredictor`,
 :class:`FlowUpdater`, :class:`MaskedGNNAssociator` or :class:`NLLRAssociator`, and a
-:class:`SingleDetectionInitiator` that takes the measured velocity covariance (and a yaw-rate state).
+:class:`SingleDetectionInitiator` that takes the measured velocity covariance (and a yaw-rate state,
+started from the detection's measured yaw rate, ``step(..., yaw_rates=)``, when it has one).
 :meth:`MultiObjectTracker.history` gives the per-frame tracks that
 :func:`flowtrack.tracking_io.write_tracks_csv` exports.
 
@@ -69,7 +70,7 @@ updater            ``check(Detections) -> Detections``;
 associator         ``associate(z_pred, S, measurements) -> (matches (K,2), unmatched_tracks,
                    unmatched_detections)``
 initiator          ``initiate(positions (k,d), velocities (k,d) or None, velocity_covs (k,d,d) or None)
-                   -> (x0 (k,n), P0 (k,n,n))``
+                   -> (x0 (k,n), P0 (k,n,n))``; also ``yaw_rates=`` (k,) when ``step`` got them
 deleter            ``delete(hits (M,), misses (M,), confirmed (M,)) -> bool mask (M,)``
 confirmer          ``initial_scores(k) -> (k,)``; ``update_scores(scores (M,), matched (K,),
                    log_likelihood (K,), has_velocity (K,), missed, velocities=None (K, d),

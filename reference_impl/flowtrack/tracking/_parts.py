@@ -95,12 +95,16 @@ class Detections:
         the covariances the updater measures the velocities with, or None when it does not use them.
     position_covs : numpy.ndarray, shape (N, d, d), or None
         Each detection's own position covariance (None: the filter's ``R`` for all).
+    yaw_rates : numpy.ndarray, shape (N,), or None
+        Each detection's measured yaw rate (rad/s about the turn axis, e.g. the Kabsch angular velocity
+        of its flow); NaN: none. A track of the turn-rate model born from the detection starts with it.
     """
 
     positions: np.ndarray
     velocities: np.ndarray | None = None
     velocity_covs: np.ndarray | None = None
     position_covs: np.ndarray | None = None
+    yaw_rates: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.positions.shape[0]
@@ -108,7 +112,8 @@ class Detections:
     def subset(self, rows: np.ndarray) -> Detections:
         """The detections ``rows`` (an index array), every field alike."""
         return Detections(*(None if a is None else a[rows] for a in
-                            (self.positions, self.velocities, self.velocity_covs, self.position_covs)))
+                            (self.positions, self.velocities, self.velocity_covs, self.position_covs,
+                             self.yaw_rates)))
 
 
 class MeasurementPrediction(NamedTuple):
@@ -176,7 +181,9 @@ class Initiator(Protocol):
     def initiate(self, detections: np.ndarray, velocities: np.ndarray | None = None,
                  velocity_covs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """States ``x0 (k, n)`` and covariances ``P0 (k, n, n)`` of tracks born from ``k`` detections
-        (positions (k, d); velocities and their covariances as in :class:`Detections`, or None)."""
+        (positions (k, d); velocities and their covariances as in :class:`Detections`, or None). The
+        tracker passes ``yaw_rates=`` (k,) as well when :meth:`MultiObjectTracker.step` got them; an
+        initiator that starts yaw-rate states should accept it."""
 
 
 @runtime_checkable
@@ -346,8 +353,10 @@ class SingleDetectionInitiator:
     with :math:`v` the detection's scene-flow velocity and :math:`\Sigma_v` its measured covariance
     (``velocity_covs``) when given, else ``flow_velocity_var`` :math:`I`; without a velocity (none
     given, or a NaN row) :math:`v = 0` and :math:`\Sigma_v` = ``velocity_var`` :math:`I`. With
-    ``yaw_rate_var`` the state is the turn-rate model's :math:`[p, v, \omega]`, :math:`\omega = 0` with
-    that variance.
+    ``yaw_rate_var`` the state is the turn-rate model's :math:`[p, v, \omega]`: :math:`\omega` is the
+    detection's measured yaw rate (``yaw_rates``, e.g. the Kabsch angular velocity of its flow about
+    the turn axis) with variance ``measured_yaw_rate_var``, or 0 with variance ``yaw_rate_var``
+    without one (none given, or NaN).
 
     Parameters
     ----------
@@ -358,21 +367,27 @@ class SingleDetectionInitiator:
     flow_velocity_var : float
         Velocity variance of a scene-flow velocity without a covariance (> 0), usually much smaller.
     yaw_rate_var : float, optional
-        Initial yaw-rate variance ((rad/s)², > 0) of the turn-rate model's state; None: ``[p, v]``.
+        Initial yaw-rate variance ((rad/s)², > 0) of the turn-rate model's state without a measured
+        yaw rate; None: ``[p, v]``.
+    measured_yaw_rate_var : float, optional
+        Initial variance ((rad/s)², > 0) of a measured yaw rate; default ``yaw_rate_var``.
     """
 
     def __init__(self, R: np.ndarray, velocity_var: float, flow_velocity_var: float,
-                 yaw_rate_var: float | None = None):
+                 yaw_rate_var: float | None = None, measured_yaw_rate_var: float | None = None):
         self.R = np.asarray(R, dtype=float)
         self.dim = self.R.shape[0]
         self.velocity_var = positive(velocity_var, "velocity_var")
         self.flow_velocity_var = positive(flow_velocity_var, "flow_velocity_var")
         self.yaw_rate_var = None if yaw_rate_var is None else positive(yaw_rate_var, "omega_var")
+        self.measured_yaw_rate_var = (self.yaw_rate_var if measured_yaw_rate_var is None
+                                      else positive(measured_yaw_rate_var, "measured_omega_var"))
 
     def initiate(self, detections: np.ndarray, velocities: np.ndarray | None = None,
-                 velocity_covs: np.ndarray | None = None):
+                 velocity_covs: np.ndarray | None = None, yaw_rates: np.ndarray | None = None):
         """Return ``x0 (k, n)`` and ``P0 (k, n, n)``; a NaN row of ``velocities`` (or of
-        ``velocity_covs``) means unknown (n = 2d, or 2d + 1 with ``yaw_rate_var``)."""
+        ``velocity_covs``) or a NaN yaw rate means unknown (n = 2d, or 2d + 1 with ``yaw_rate_var``;
+        ``yaw_rates`` (k,) is used only then)."""
         k, d = detections.shape
         x0 = np.zeros((k, 2 * d))
         x0[:, :d] = detections
@@ -395,6 +410,11 @@ class SingleDetectionInitiator:
         P1 = np.zeros((k, n + 1, n + 1))
         P1[:, :n, :n] = P0
         P1[:, n, n] = self.yaw_rate_var
+        if yaw_rates is not None:
+            w = np.asarray(yaw_rates, dtype=float).reshape(k)
+            measured = np.isfinite(w)
+            x1[measured, n] = w[measured]
+            P1[measured, n, n] = self.measured_yaw_rate_var
         return x1, P1
 
 

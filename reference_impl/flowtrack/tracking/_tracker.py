@@ -132,6 +132,9 @@ class FlowOptions:
         turn-rate model.
     turn_axis : array_like, shape (3,), optional
         Normal of the plane of motion of the 3-D turn-rate model (default z).
+    measured_omega_var : float, optional
+        Initial yaw-rate variance ((rad/s)²) of a track born from a detection with a measured yaw rate
+        (``step(..., yaw_rates=)``); default ``omega_var``.
     """
 
     velocity_update: bool = False
@@ -143,6 +146,7 @@ class FlowOptions:
     q_omega: float = 1.0
     omega_var: float = 4.0
     turn_axis: np.ndarray | None = None
+    measured_omega_var: float | None = None
 
     @property
     def on(self) -> bool:
@@ -220,6 +224,9 @@ class MultiObjectTracker:
         Normal of the plane of motion (3-D turn-rate model; default z). In the camera frame pass the
         table's (support plane's) normal: the camera's z is its optical axis, and a wrong plane turns
         the velocity the wrong way.
+    measured_omega_var : float, optional
+        Initial yaw-rate variance ((rad/s)^2) of a turn-rate track born from a detection that carries
+        a measured yaw rate (``step(..., yaw_rates=)``); default ``omega_var``.
     reacquire_radius : float, optional
         Re-acquisition after an occlusion (m; see the module docstring): a coasting confirmed track
         takes the nearest unassigned detection within this distance and restarts from it, keeping
@@ -307,6 +314,7 @@ class MultiObjectTracker:
         q_omega=1.0,
         omega_var=4.0,
         turn_axis=None,
+        measured_omega_var=None,
         reacquire_radius=None,
         birth_exclusion_radius=None,
     ):
@@ -325,7 +333,8 @@ class MultiObjectTracker:
         velocity_var = (100.0 * sr2 / self.dt**2) if velocity_var is None else velocity_var
         flow_velocity_var = (sr2 / self.dt**2) if flow_velocity_var is None else flow_velocity_var
         keywords = FlowOptions(velocity_update, velocity_cov, p_detect, clutter_density,
-                               velocity_clutter_density, motion_model, q_omega, omega_var, turn_axis)
+                               velocity_clutter_density, motion_model, q_omega, omega_var, turn_axis,
+                               measured_omega_var)
         if flow is None:
             flow = keywords
         elif not all(_unchanged(getattr(keywords, f.name), f.default) for f in fields(FlowOptions)):
@@ -373,7 +382,8 @@ class MultiObjectTracker:
         omega_var = positive(flow.omega_var, "omega_var")
         turn_rate = flow.motion_model == "turn_rate"
         initiator = SingleDetectionInitiator(R, velocity_var, flow_velocity_var,
-                                             yaw_rate_var=omega_var if turn_rate else None)
+                                             yaw_rate_var=omega_var if turn_rate else None,
+                                             measured_yaw_rate_var=flow.measured_omega_var)
         if (flow.p_detect is None) != (flow.clutter_density is None):
             raise ValueError("p_detect and clutter_density must be given together")
         velocity_cov = float(flow_velocity_var) if flow.velocity_cov is None else flow.velocity_cov
@@ -388,7 +398,7 @@ class MultiObjectTracker:
         return {"predictor": predictor, "associator": associator, "updater": updater, "initiator": initiator}
 
     # -- input ---------------------------------------------------------------------------------------
-    def _detections(self, detections, velocities, velocity_covs, position_covs) -> Detections:
+    def _detections(self, detections, velocities, velocity_covs, position_covs, yaw_rates=None) -> Detections:
         """One frame's input checked: shapes, NaN/inf, symmetric positive (semi-)definite covariances."""
         d = self.dim
         Z = as_array(detections, "detections")
@@ -416,10 +426,14 @@ class MultiObjectTracker:
         if position_covs is not None:
             Rp = check_psd(as_array(position_covs, "position_covs", (len(Z), d, d)), "position_covs",
                            strict=True)
-        return Detections(Z, V, Rv, Rp)
+        W = None
+        if yaw_rates is not None:
+            W = as_array(yaw_rates, "yaw_rates", (len(Z),), allow_nan=True)
+        return Detections(Z, V, Rv, Rp, W)
 
     # -- the loop ------------------------------------------------------------------------------------
-    def step(self, detections, velocities=None, velocity_covs=None, position_covs=None) -> list[Track]:
+    def step(self, detections, velocities=None, velocity_covs=None, position_covs=None, *,
+             yaw_rates=None) -> list[Track]:
         """Process one frame of detections; return the reported (confirmed or coasting) tracks.
 
         Parameters
@@ -440,6 +454,12 @@ class MultiObjectTracker:
             occluder is off the object's centroid along the occluder). Needs the flow-aware filter
             (``velocity_update=True``, ``p_detect`` or the turn-rate model). Tracks born from these
             detections start with R, as any.
+        yaw_rates : array_like, shape (N,), optional
+            Each detection's measured yaw rate (rad/s about the turn axis: the angular velocity of the
+            rigid motion fitted to its flow, :meth:`flowtrack.motion.RigidMotion.yaw_rate`); NaN: none.
+            A track of the turn-rate model born from such a detection starts with it (variance
+            ``measured_omega_var``) instead of 0; the constant-velocity model has no yaw rate and
+            ignores it.
 
         Returns
         -------
@@ -453,7 +473,8 @@ class MultiObjectTracker:
             the wrong shape or not positive (semi-)definite; ``velocity_covs`` or ``position_covs``
             the updater cannot use. Nothing has changed then (the frame is not counted).
         """
-        dets = self.updater.check(self._detections(detections, velocities, velocity_covs, position_covs))
+        dets = self.updater.check(self._detections(detections, velocities, velocity_covs, position_covs,
+                                                   yaw_rates))
         self.frame += 1
         # 1. predict every track
         self.predictor.predict(self.kf)
@@ -562,7 +583,10 @@ class MultiObjectTracker:
         if len(new) == 0:
             return
         Z = new.positions
-        x0, P0 = self.initiator.initiate(Z, new.velocities, new.velocity_covs)
+        if new.yaw_rates is None:  # a custom initiator need not know yaw rates
+            x0, P0 = self.initiator.initiate(Z, new.velocities, new.velocity_covs)
+        else:
+            x0, P0 = self.initiator.initiate(Z, new.velocities, new.velocity_covs, yaw_rates=new.yaw_rates)
         if self.reacquire_radius is not None:
             back = self._reacquire_at_birth(Z, x0, P0)
             x0, P0, Z = x0[~back], P0[~back], Z[~back]

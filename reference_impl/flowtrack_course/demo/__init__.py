@@ -24,8 +24,9 @@ Per frame pair :math:`(t, t+1)`:
 4. one :meth:`~flowtrack.tracking.MultiObjectTracker.step` with the pieces' centroids
    :math:`\bar X_c` as detections and, as velocity measurements, the velocity of each piece's
    visible-surface centroid (what a detection measures: its pixels carried into the next depth image
-   by the flow, :func:`flowtrack.pipeline.visible_centroid_velocities`), each with a covariance from
-   its cluster's flow residuals (:func:`flowtrack.motion.detection_velocity_covariances`) widened by
+   by the flow, :func:`flowtrack.pipeline.visible_centroid_velocities`), each with the covariance of
+   that estimate (the flow's residual scatter and the error the piece shares,
+   ``visible_velocity_std``, :class:`flowtrack.pipeline.PipelineConfig`) widened by
    the gap between that velocity and the mean flow, the visible-extent change
    (``velocity_update=True``; :func:`flowtrack_course.demo.run.detection_measurements`), and a
    position covariance widened toward a nearer surface that cuts the piece

@@ -139,14 +139,16 @@ def assign_tracks(tracks: dict[int, np.ndarray], truth: dict[int, np.ndarray], g
 
 
 def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: DemoConfig,
-                           partner: int | None = None):
+                           partner: int | None = None, *, yaw_axis=None):
     """Detections of frame ``t`` with their velocity measurements: ``(Z (K, 3), U (K, 3), C (K, 3, 3),
     R (K, 3, 3) or None)``.
 
     ``Z`` are the pieces' centroids (:func:`flowtrack.pipeline.detection_pieces`); ``U`` the velocity
-    of each piece's visible-surface centroid and ``C`` its covariance, the cluster's flow-residual
-    covariance (:func:`flowtrack.motion.detection_velocity_covariances`, ``min_std =
-    velocity_min_std``) widened by the visible-extent change
+    of each piece's visible-surface centroid and ``C`` its covariance: the flow's scatter about its
+    cluster's rigid motion (:func:`flowtrack.motion.detection_velocity_covariances`, ``min_std =
+    visible_velocity_std``) plus ``visible_velocity_speed_fraction**2 (v . v) 100 / n I`` for a piece of
+    n points with mean flow v (see :class:`flowtrack.pipeline.PipelineConfig`), widened by the
+    visible-extent change
     (:func:`flowtrack.pipeline.visible_centroid_velocities`, ``radius = centroid_radius``, at least the
     voxel size of a real cloud; ``inflation = extent_change_inflation``). ``R`` is each detection's
     position covariance, ``track_r`` widened toward a nearer surface that cuts the piece
@@ -159,6 +161,11 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     over the time between the two frames (``DemoInput.interval``: their timestamps for real
     input). For a backward pair (``partner < t``) the returned ``U`` is negated, so it is always the
     velocity at frame ``t`` forward in time.
+
+    With ``yaw_axis`` (a unit 3-vector, e.g. the table's normal in the camera frame) a fifth array
+    ``W (K,)`` follows: each piece's yaw rate about that axis, the angular velocity of the rigid motion
+    fitted to its flow (Kabsch, :func:`flowtrack.motion.rigid_motion_from_flow`), for
+    ``MultiObjectTracker.step(..., yaw_rates=)``.
     """
     s = t + 1 if partner is None else int(partner)
     if s == t:
@@ -175,14 +182,19 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
                               min_speed=cfg.rgbd_min_speed, images=colour,
                               occluders=(depth_t, inp.camera), rigid_merge=True)
     Z = np.array([X[p].mean(axis=0) for p in pieces]).reshape(-1, 3)
-    # each piece's covariance is that of its (main) cluster: a point of it stands for the piece (a piece
-    # merged across an occluder has its centroid in the gap, maybe nearest to the occluder's points)
+    # the covariance of the visible centroid's velocity itself (see PipelineConfig.visible_velocity_std):
+    # the flow's scatter about its cluster's rigid motion, which the warped labels inherit (a point of
+    # the piece's main cluster stands for the piece: a piece merged across an occluder has its centroid
+    # in the gap, maybe nearest to the occluder's points), plus the error the whole piece shares
     rep = []
     for p in pieces:
         labs, counts = np.unique(clusters[p], return_counts=True)
         rep.append(X[p[np.flatnonzero(clusters[p] == labs[np.argmax(counts)])[0]]])
     rep = np.array(rep).reshape(-1, 3)
-    C = detection_velocity_covariances(X, clusters, flow, rep, dt, min_std=cfg.velocity_min_std)
+    C = detection_velocity_covariances(X, clusters, flow, rep, dt, min_std=cfg.visible_velocity_std)
+    for k, p in enumerate(pieces):
+        C[k] += (cfg.visible_velocity_speed_fraction**2 * float(np.sum(flow[p].mean(axis=0) ** 2))
+                 * 100.0 / len(p)) * np.eye(3)
     radius = cfg.centroid_radius if inp.scene is not None else max(cfg.centroid_radius, cfg.voxel)
     U, C = visible_centroid_velocities(X, pieces, flow, depth_t, depth_t1, inp.camera, dt, radius=radius,
                                        velocity_covs=C, inflation=cfg.extent_change_inflation)
@@ -190,7 +202,13 @@ def detection_measurements(inp, t: int, X, clusters, flow, next_points, cfg: Dem
     if cfg.occlusion_position_scale is not None:
         Rz = occlusion_position_covariances(X, pieces, depth_t, inp.camera, cfg.track_r,
                                             scale=cfg.occlusion_position_scale, margin=cfg.occlusion_margin)
-    return Z, (U if s > t else -U), C, Rz
+    sign = 1.0 if s > t else -1.0
+    if yaw_axis is None:
+        return Z, sign * U, C, Rz
+    from flowtrack.motion import rigid_motion_from_flow
+
+    W = np.array([sign * rigid_motion_from_flow(X[p], flow[p], dt).yaw_rate(yaw_axis) for p in pieces])
+    return Z, sign * U, C, Rz, W
 
 
 @open3d_threads(1)
@@ -217,8 +235,8 @@ def run_demo(
 
     The scene flow that clustering and the tracker use is the dense variational RGB-D flow of each
     frame pair (:func:`flowtrack.pipeline.rgbd_cloud_flow`), for the synthetic scene and for real
-    input alike. Each detection carries the velocity of its visible-surface centroid and a velocity
-    covariance from the cluster's flow residuals widened by the visible-extent change
+    input alike. Each detection carries the velocity of its visible-surface centroid and that
+    velocity's covariance, widened by the visible-extent change
     (:func:`detection_measurements`); the tracker updates with position and velocity
     (``velocity_update=True``, constant-velocity model).
 
