@@ -511,3 +511,59 @@ def test_assignment_solution_stub_and_greedy(toolchain, tmp_path):
     # public: 1 of 2 cases (0.5 of 1 point); hidden: 1 of 3 (2/3 of 2 points)
     assert r.score == pytest.approx(0.5 + 2 / 3), [t.message for t in r.tests]
     assert all("greedy-assignment" in t.mistakes for t in r.tests), [(t.message, t.mistakes) for t in r.tests]
+
+
+# -- what a failed program and a missing toolchain tell ------------------------------------------------
+
+
+def test_a_failed_build_or_run_reaches_the_hidden_feedback_in_the_graders_words():
+    from flowtrack_course.grading.engine.feedback import safe_text
+
+    p = PROBLEMS["projection_jacobian"]
+    cases = [{"id": "a", "input": p.public()[1]}]
+    exp = [{"J": np.asarray(p.reference(cases[0]["input"])["J"])}]
+    build = ("RuntimeError: build failed (g++, exit 1):\nprojection_jacobian.cpp:9:5: error: 0.123456\n"
+             "projection_jacobian.cpp:12:1: error: x")
+    score, msg = _score(p, cases, exp, Outcome(False, None, build), show=False,
+                        source_name="projection_jacobian.cpp")
+    assert score == 0.0 and "0.123456" in msg  # the public text: the compiler's own
+    safe = safe_text(msg)
+    assert safe.startswith("the build failed (g++): 2 compiler errors, the first at line 9"), safe
+    assert "0.123456" not in safe
+    # a run that printed no result: the category, never the exit status or the program's text
+    run = "RuntimeError: the program printed no result (exit 55): 0.55"
+    safe = safe_text(_score(p, cases, exp, Outcome(False, None, run), show=False)[1])
+    assert safe == "the program printed no result", safe
+    # an interpreter in the driver's process could raise the driver's words: no build report then
+    safe = safe_text(_score(p, cases, exp, Outcome(False, None, build), show=False, builds=False,
+                            source_name="projection_jacobian.cpp")[1])
+    assert "line 9" not in safe and "0.123456" not in safe, safe
+
+
+def test_stubs_state_the_interface_not_the_answer():
+    """ex05 asks for Q's layout (kron(Q1d, I2) for the state [px, py, vx, vy]): no stub may say it."""
+    header = REPO / "reference_impl/flowtrack_course/polyglot/files/cpp/cv_model.hpp"
+    texts = {"cpp header": header.read_text()}
+    for language in ("cpp", "java", "octave", "mathics"):
+        ex = _ex(language, "cv_model")
+        texts[language] = strip_solutions(instructor_source(ex).read_text(), language)
+    for where, text in texts.items():
+        assert not re.search(r"kron|Kronecker", text), where
+
+
+def test_a_missing_toolchain_is_the_installation_not_the_students_fail(monkeypatch, tmp_path):
+    from flowtrack_course.grading.check import check_notebook
+    from flowtrack_course.grading.engine.spec import CannotGradeHere
+    from flowtrack_course.polyglot.base import ToolchainMissing
+
+    ex = _ex("mathics", "cv_model")
+
+    def missing(self, ports=False):
+        raise ToolchainMissing("Mathics3 is not installed: pip install 'flowtrack[mathics]'")
+
+    monkeypatch.setattr(type(ex.toolchain), "check", missing)
+    assert "Mathics3 is not installed" in ex.environment_problem()
+    path = _write(tmp_path / "ana", ex, instructor_source(ex).read_text())
+    with pytest.raises(CannotGradeHere, match="not the student's work"):
+        run_exercise(ex, path, "ana")
+    assert check_notebook(path) == 3  # not checked: no FAIL, no score
