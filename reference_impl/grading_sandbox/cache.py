@@ -52,9 +52,16 @@ def cache_root() -> Path:
     ------
     RuntimeError
         The folder exists but is not a private directory of this user.
+    FileNotFoundError
+        :data:`.config.ENV_CACHE` names a folder that does not exist (said with the variable's name).
     """
     explicit = config.env(config.ENV_CACHE)
     base = Path(explicit or tempfile.gettempdir())
+    if explicit and not base.is_dir():
+        raise FileNotFoundError(
+            f"{config.ENV_CACHE}={explicit}: no such folder; create it (mkdir -p) or unset the variable "
+            "to use the temporary directory"
+        )
     if os.geteuid() == 0 and not explicit and not world_readable(base, read=False):
         # root with a private TMPDIR (e.g. /root/tmp): the sandbox's unprivileged uid could not
         # reach its files there; use the machine's shared temporary directory instead.

@@ -427,3 +427,11 @@ def test_package_entries_match_every_file_resolved(allowed):
                     if first != "__pycache__":  # the metadata too: importlib.metadata reads it
                         want.add(first)
         assert package_entries(site, packages) == sorted(n for n in want if (root / n).exists())
+
+
+def test_a_cache_variable_naming_a_missing_folder_says_so(monkeypatch, tmp_path):
+    from grading_sandbox import cache, config
+
+    monkeypatch.setenv(config.ENV_CACHE, str(tmp_path / "nowhere"))
+    with pytest.raises(FileNotFoundError, match=f"{config.ENV_CACHE}=.*no such folder"):
+        cache.cache_root()
