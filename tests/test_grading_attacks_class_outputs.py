@@ -139,3 +139,15 @@ def test_roster_cells_that_look_like_formulas_are_escaped(tmp_path, lms):
     assert any(c == "'" + HOSTILE[0] for c in cells) and any(c == "'=cmd|' /C calc'!A0" for c in cells)
     if lms == "moodle":  # (Canvas' file has no e-mail column)
         assert "'=s0@example.org" in cells
+
+
+def test_the_report_reteaches_only_exercises_someone_handed_in():
+    from types import SimpleNamespace
+
+    from flowtrack_course.grading.export.classreport import class_report_markdown
+
+    exs = [SimpleNamespace(id=f"ex{i}", title=f"t{i}", max_score=10.0) for i in (1, 2)]
+    rows = [{"student": s, "exercises": {"ex1": 6.0, "ex2": 0.0}, "failures": {"ex1": "x"}} for s in "ab"]
+    md = class_report_markdown(rows, exs, {})
+    reteach = md.split("## What to reteach first", 1)[1]
+    assert "ex1" in reteach and "ex2" not in reteach, reteach  # nobody submitted ex2

@@ -197,7 +197,12 @@ def class_report_markdown(
         rows = graded(ex)
         return sum(float(r["exercises"][ex.id]) for r in rows) / max(len(rows), 1) / max(ex.max_score, 1e-12)
 
-    weakest = sorted((ex for ex in exercises if graded(ex)), key=fraction)
+    def submitted(ex) -> bool:
+        """Someone handed ``ex`` in (rows without the ``failures`` record, from older runs, count)."""
+        return any(ex.id in r["failures"] if "failures" in r else True for r in graded(ex))
+
+    # an exercise nobody handed in scores 0 for everyone: nothing to reteach from that
+    weakest = sorted((ex for ex in exercises if graded(ex) and submitted(ex)), key=fraction)
     if ok and weakest:
         lines += ["", "## What to reteach first", ""]
         for ex in weakest[:3]:
