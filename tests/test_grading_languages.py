@@ -567,3 +567,20 @@ def test_a_missing_toolchain_is_the_installation_not_the_students_fail(monkeypat
     with pytest.raises(CannotGradeHere, match="not the student's work"):
         run_exercise(ex, path, "ana")
     assert check_notebook(path) == 3  # not checked: no FAIL, no score
+
+
+def test_hidden_feedback_of_wrong_outputs_carries_nothing_the_program_chose():
+    """A program sees the hidden inputs: which cases fail, by how much and the shape it returns are
+    its choice, so the hidden text is the same whatever wrong values it printed."""
+    from flowtrack_course.grading.engine.feedback import safe_text
+
+    p = PROBLEMS["projection_jacobian"]
+    cases = [{"id": "a", "input": p.public()[1]}, {"id": "b", "input": p.public()[0]}]
+    exp = [{"J": np.asarray(p.reference(c["input"])["J"])} for c in cases]
+    texts = {
+        safe_text(_score(p, cases, exp, _outcome(cases, [{"J": e["J"] + d} for e in exp]), show=False)[1])
+        for d in (0.37, 55.0, 1e-3)
+    }
+    assert len(texts) == 1, texts
+    (text,) = texts
+    assert "case a" not in text and "0.37" not in text and "55" not in text, text
