@@ -83,3 +83,15 @@ def test_no_tool_counts_parent_folders():
             if "__file__" in text and (".parents" in text or ".parent.parent" in text):
                 bad.append(f"{path.relative_to(ROOT)}:{node.lineno}: {text}")
     assert not bad, "\n".join(sorted(set(bad)))
+
+
+def test_a_lesson_run_from_lessons_finds_its_course(tmp_path, monkeypatch):
+    """`jupyter lab lessons/` runs a lesson in lessons/: the course is the folder holding it."""
+    c = _course(tmp_path / "c", "lessons", "exercises", "cpp_java_matlab_ports")
+    monkeypatch.delenv(ENV, raising=False)
+    monkeypatch.chdir(c / "lessons")
+    assert course_root() == c.resolve()
+    # any other folder named lessons/ outside a course is still not one
+    monkeypatch.chdir(_course(tmp_path / "x", "lessons") / "lessons")
+    with pytest.raises(CourseNotFound):
+        course_root()

@@ -8,7 +8,8 @@ In this order:
 
 1. an explicit folder: the ``course`` argument, i.e. a command's ``--course DIR`` option;
 2. the environment variable ``FLOWTRACK_COURSE``;
-3. the current folder.
+3. the current folder (its parent when the current folder is the course's ``lessons/``, where
+   a lesson runs).
 
 The folder found must hold what the caller needs, else :class:`CourseNotFound` (a
 ``FileNotFoundError``) names the folder, where it came from and what is missing.
@@ -82,6 +83,12 @@ def course_root(course: str | os.PathLike | None = None, *, need: Sequence[str] 
         root, origin = Path(os.environ[ENV]), f"from ${ENV}"
     else:
         root, origin = Path.cwd(), "the current folder"
+        here = root.resolve()
+        # `jupyter lab lessons/` runs a lesson with lessons/ as its current folder: the course is
+        # the folder that holds it (what the current folder says, not where this file is)
+        if (here.name == "lessons" and not all((here / n).exists() for n in need)
+                and all((here.parent / n).exists() for n in need)):
+            root, origin = here.parent, "the folder holding the current lessons/ folder"
     root = root.expanduser().resolve()
     hint = f"pass --course DIR or set {ENV} to a checkout of the course"
     if not root.is_dir():
