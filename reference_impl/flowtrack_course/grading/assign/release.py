@@ -85,7 +85,8 @@ python -m pip install "flowtrack[student]"
 
 Your instructor may give you the course package as a folder or a file instead; install it the same
 way, e.g. `python -m pip install "/path/to/flowtrack[student]"`. The `student` extra installs
-JupyterLab and what the exercises and `flowtrack check` need (numpy, scipy, sympy); it leaves out
+JupyterLab and what the exercises, `flowtrack check` and the lessons need (numpy, scipy, sympy,
+OpenCV, filterpy); it leaves out
 open3d (only lessons 3 and 6 use it, for rigid ICP flow: `python -m pip install open3d` if you want
 to run those cells) and the tools that build the course book.
 
