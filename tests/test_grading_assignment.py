@@ -47,6 +47,13 @@ def _student(root: Path, name: str, notebooks=True, languages=()) -> Path:
     return folder
 
 
+def _graded(run):
+    """The run graded everyone: its only complaint may be that the stand-in sandbox, the same for
+    every student, failed an exercise the same way for all (which a real class run must report)."""
+    same_way = any("failed it the same way" in s for s in run.summary)
+    assert run.status == 0 or (run.status == 3 and same_way), run
+
+
 def test_uploads_in_unassigned_languages_change_nobodys_maximum(tmp_path):
     assert len(LANGUAGE_EXERCISES) >= 19
     subs = tmp_path / "subs"
@@ -56,7 +63,7 @@ def test_uploads_in_unassigned_languages_change_nobodys_maximum(tmp_path):
     out = tmp_path / "out"
     run = run_grade_with(subs, out, catalog=course_catalog(COURSE), progress=False,
                          sandbox_factory=RecordingSandbox, lms="canvas")
-    assert run.status == 0, run
+    _graded(run)
     rows = list(csv.DictReader((out / "grades.csv").open()))
     assert list(rows[0])[1:-2] == [ex.id for ex in EXERCISES]  # no column for what mallory uploaded
     assert {float(r["max"]) for r in rows} == {NOTEBOOK_MAX}
@@ -105,7 +112,7 @@ def test_one_language_of_each_students_choice(tmp_path):
         shutil.copy(source_notebook(EXERCISES[0]), folder / EXERCISES[0].notebook)  # not assigned
     out = tmp_path / "out"
     run = run_grade_with(subs, out, catalog=catalog, progress=False, sandbox_factory=RecordingSandbox)
-    assert run.status == 0, run
+    _graded(run)
     rows = {r["student"]: r for r in csv.DictReader((out / "grades.csv").open())}
     columns = [*(ex.id for ex in notebooks), *(ex.id for lang in assignment.languages for ex in items[lang])]
     assert list(rows["oli"])[1:-2] == columns

@@ -10,8 +10,6 @@ process (the in-process runner), as in tests/test_mistakes.py.
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 import pytest
 
@@ -132,9 +130,8 @@ def test_pairs_given_as_column_row_fail_a_public_test():
     small = next(r for name, r in results.items() if name.startswith("small matrices"))
     assert small[1] < small[2], small
     assert "not a minimal one (total 18, the minimum is 6)" in small[3] and "mistake " not in small[3]
-    # what a hidden test says of it: how far above the minimum, in words that read
+    # what a hidden test says of it: in words that read, without the answer's total (the student's choice)
     module = exercise_module("ex08_hungarian")
     C = np.array([[9.0, 2.0, 6.0], [5.0, 9.0, 1.0], [3.0, 7.0, 9.0]])
     _, report = module.assignment_check(C)(Outcome(True, [[1, 0], [2, 1], [0, 2]]))
-    assert re.fullmatch(r"a valid assignment but not a minimal one \(its total is 200 % above the minimum\)",
-                        report.safe)
+    assert report.safe == "a valid assignment but not a minimal one (its total exceeds the minimum)"

@@ -85,7 +85,7 @@ def test_a_class_failing_an_exercise_all_the_same_way_is_reported(tmp_path):
     assert run.status == 3
     lines = [line for line in run.summary if "failed it the same way" in line]
     assert len(lines) == 1 and "3 students who submitted ex05_cv_model" in lines[0]
-    assert "while running the notebook cells" in lines[0]
+    assert "the process exited" in lines[0]  # in the grader's words (the hidden-safe category)
     assert (tmp_path / "out" / "grades.csv").is_file()  # the grades are written, and flagged
 
 
