@@ -128,12 +128,14 @@ MISTAKES = (
     Mistake(
         "innovation-without-R",
         "the innovation covariance lacks R: S = H P H^T + R, the measurement noise adds to the "
-        f"predicted spread (without it the filter trusts the measurement too much); see {_L4} §4",
+        "predicted spread (without it the filter trusts the measurement too much); "
+        f"see {_L4} §4 (the Kalman gain, derived from the measurement and its covariance)",
     ),
     Mistake(
         "predict-without-Q",
         "the predicted covariance lacks Q: P = F P F^T + Q, the process noise is what keeps the "
-        f"filter from becoming over-confident; see {_L4} §2 and §6",
+        "filter from becoming over-confident; "
+        f"see {_L4} §2 and §6 (the constant-velocity model, the steady state)",
     ),
 )
 
@@ -159,11 +161,12 @@ LANGUAGE_MISTAKES = (
     Mistake(
         "kalman-no-predict",
         "the update starts from x and P as they were: a step first predicts them (x = F x, "
-        f"P = F P F^T + Q), then updates the prediction with z; see {_L4} §2 and §4",
+        "P = F P F^T + Q), then updates the prediction with z; "
+        f"see {_L4} §2 and §4 (the constant-velocity model, the Kalman gain)",
     ),
     Mistake(
         "kalman-prior-cov",
         "P is the predicted covariance F P F^T + Q: the update must shrink it, P = (I - K H) P "
-        f"(the measurement adds information); see {_L4} §4",
+        f"(the measurement adds information); see {_L4} §4 (the Kalman gain and the posterior covariance)",
     ),
 )

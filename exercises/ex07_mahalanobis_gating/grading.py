@@ -148,27 +148,31 @@ MISTAKES = (
     Mistake(
         "euclidean-not-mahalanobis",
         "this is the squared Euclidean distance: the Mahalanobis cost weighs the difference by "
-        f"S^-1, d^T S^-1 d, so an uncertain track accepts farther detections; see {_L5} §1",
+        "S^-1, d^T S^-1 d, so an uncertain track accepts farther detections; "
+        f"see {_L5} §1 (the Mahalanobis cost)",
     ),
     Mistake(
         "covariance-not-inverted",
         "S is used instead of its inverse: d^T S d grows with the uncertainty instead of "
-        f"shrinking; the cost is d^T S^-1 d (solve with S, or its Cholesky factor); see {_L5} §1",
+        "shrinking; the cost is d^T S^-1 d (solve with S, or its Cholesky factor); "
+        f"see {_L5} §1 (the Mahalanobis cost)",
     ),
     Mistake(
         "distance-not-squared",
         "this is the Mahalanobis distance, not its square: the chi-square gate applies to "
-        f"d^T S^-1 d, which is chi-square distributed with m degrees of freedom; see {_L5} §1",
+        "d^T S^-1 d, which is chi-square distributed with m degrees of freedom; "
+        f"see {_L5} §1 (the chi-square gate)",
     ),
     Mistake(
         "gate-wrong-dof",
         "the gate uses the wrong degrees of freedom: d^T S^-1 d is chi-square with m = the "
-        f"measurement dimension (z_pred.shape[1]) degrees of freedom; see {_L5} §1 and §3",
+        "measurement dimension (z_pred.shape[1]) degrees of freedom; "
+        f"see {_L5} §1 and §3 (the chi-square gate)",
     ),
     Mistake(
         "gate-prob-as-threshold",
         "the gate probability is used as the threshold: the threshold is the chi-square "
-        f"quantile chi2.ppf(prob, m), not prob itself; see {_L5} §1",
+        f"quantile chi2.ppf(prob, m), not prob itself; see {_L5} §1 (the chi-square gate)",
     ),
 )
 
