@@ -1,11 +1,14 @@
 r"""Ex12, one pixel's linearised RGB-D data term: trusted tests of the notebook next to this file.
 
 The student writes the two coefficient rows :math:`a_I = J^\top\nabla I` and
-:math:`a_D = J^\top\nabla D - e_z` (``data_term_rows``) and a pixel's 3×3 normal matrix and right-hand
-side (``pixel_normal_equations``): :math:`N = w_I a_I a_I^\top + w_D a_D a_D^\top`,
-:math:`b = -(w_I r_I a_I + w_D r_D a_D)`. The reference is
+:math:`a_D = J^\top\nabla D - e_z` (``data_term_rows``), a pixel's 3×3 normal matrix and right-hand
+side (``pixel_normal_equations``): :math:`N = w_I a_I a_I^\top + w_D a_D a_D^\top` (half the Hessian
+of the pixel's energy), :math:`b = -(w_I r_I a_I + w_D r_D a_D)` (minus half its gradient at 0), and
+the motion the pixel cannot see (``unseen_direction``): the unit vector along
+:math:`a_I \times a_D`, graded up to its sign. The reference is
 :func:`flowtrack.rgbd_flow.pixel_normal_equations`; the rows are read off it (with :math:`r = 1` and one
-weight switched off, :math:`b = -a`), so both functions are graded against the estimator's own data term.
+weight switched off, :math:`b = -a`), so the functions are graded against the estimator's own data
+term; the unseen direction is the eigenvector of the reference's :math:`N` with the eigenvalue 0.
 """
 
 from __future__ import annotations
@@ -13,9 +16,17 @@ from __future__ import annotations
 import numpy as np
 
 from flowtrack_course.grading.engine.authoring import (
+    Check,
     Exercise,
+    Mistake,
+    Outcome,
+    Report,
+    Variant,
     array_check,
+    as_float_array,
+    compare,
     graded_test,
+    safe_error,
     tuple_check,
 )
 
@@ -78,12 +89,51 @@ def _random_pixels(rng, n):
     return X, gi, ri, gd, rd, fx, fy
 
 
+def unseen_reference(a_i: np.ndarray, a_d: np.ndarray) -> np.ndarray:
+    """The unit null vector of each pixel's normal matrix, from the reference's N (unit weights):
+    the eigenvector of its eigenvalue 0 (numpy ``eigh``), shape (n, 3), sign as numpy gives it."""
+    N = np.einsum("ni,nj->nij", a_i, a_i) + np.einsum("ni,nj->nij", a_d, a_d)
+    return np.linalg.eigh(N)[1][:, :, 0]
+
+
+def _aligned(v: np.ndarray, to: np.ndarray) -> np.ndarray:
+    """``v`` with each row's sign flipped where it points away from the same row of ``to``."""
+    return v * np.where(np.sum(v * to, axis=1) < 0.0, -1.0, 1.0)[:, None]
+
+
+def unseen_check(a_i: np.ndarray, a_d: np.ndarray) -> Check:
+    """Unit vectors with N u = 0, one per pixel, either sign per row (relative 1e-6 once each row's
+    sign is matched to the expected one); the catalogued wrong answers are matched the same way."""
+    u = unseen_reference(a_i, a_d)
+    cross = np.cross(a_i, a_d)
+    wrong = [
+        ("unseen-not-normalised", cross),
+        ("unseen-seen-direction", a_i / np.linalg.norm(a_i, axis=1, keepdims=True)),
+        ("unseen-seen-direction", a_d / np.linalg.norm(a_d, axis=1, keepdims=True)),
+    ]
+
+    def check(outcome: Outcome) -> tuple[float, str]:
+        if not outcome.ok:
+            err = outcome.error or "the call failed"
+            return 0.0, Report(err, safe_error(err))
+        got = as_float_array(outcome.value, u.shape)
+        if got is None or not np.all(np.isfinite(got)):
+            d = compare(outcome, u)
+            return 0.0, d.report()
+        got = _aligned(got, u)
+        variants = [Variant(k, _aligned(v, got)) for k, v in wrong]
+        d = compare(Outcome(True, got.tolist()), u, variants=variants)
+        return (1.0 if d.ok else 0.0), d.report()
+
+    return check
+
+
 @graded_test("data-term rows: three pixels", "test_rows", 1.0, hidden=False)
 def _ex12_rows_public(rng):
     return [("data_term_rows", (_X, _GI, _GD, 100.0, 100.0), {}, _rows_check(_X, _GI, _GD, 100.0, 100.0))]
 
 
-@graded_test("data-term rows: random pixels and focal lengths", "test_rows", 3.0, hidden=True)
+@graded_test("data-term rows: random pixels and focal lengths", "test_rows", 2.0, hidden=True)
 def _ex12_rows_hidden(rng):
     out = []
     for n in (1, 6, 25):
@@ -102,7 +152,7 @@ def _ex12_normal_public(rng):
 
 
 @graded_test(
-    "normal equations: random pixels, residuals and weights", "test_normal_equations", 4.0, hidden=True
+    "normal equations: random pixels, residuals and weights", "test_normal_equations", 3.0, hidden=True
 )
 def _ex12_normal_hidden(rng):
     out = []
@@ -119,14 +169,52 @@ def _ex12_normal_hidden(rng):
     return out
 
 
+@graded_test("the motion a pixel cannot see: three pixels", "test_unseen", 0.5, hidden=False)
+def _ex12_unseen_public(rng):
+    a_i, a_d = _rows(_X, _GI, _GD, 100.0, 100.0)
+    return [("unseen_direction", (a_i, a_d), {}, unseen_check(a_i, a_d))]
+
+
+@graded_test("the motion a pixel cannot see: random pixels", "test_unseen", 1.5, hidden=True)
+def _ex12_unseen_hidden(rng):
+    out = []
+    for n in (1, 7, 30):
+        X, gi, _, gd, _, fx, fy = _random_pixels(rng, n)
+        a_i, a_d = _rows(X, gi, gd, fx, fy)
+        out.append(("unseen_direction", (a_i, a_d), {}, unseen_check(a_i, a_d)))
+    return out
+
+
+# The catalogued mistakes this exercise defines: stable ids (instructors' reports count them
+# across terms), what the mistake is, why it is wrong, which lesson section explains it.
+_L2 = "lesson 02_variational_scene_flow"
+
+MISTAKES = (
+    Mistake(
+        "unseen-not-normalised",
+        "this is a_I x a_D, the right direction but not of unit length: divide each row by its norm; "
+        f"see {_L2} §1 (the aperture problem in 3-D)",
+    ),
+    Mistake(
+        "unseen-seen-direction",
+        "this is a direction the pixel does see, a row of its data term (a_D is the surface normal, "
+        "along which depth sees the motion; a_I the direction brightness sees); the unseen one is "
+        "orthogonal to both rows: a_I x a_D, normalised; "
+        f"see {_L2} §1 (the geometric reading of the aperture problem)",
+    ),
+)
+
+
 EXERCISE = Exercise(
     id="ex12_rgbd_data_term",
     title="The linearised RGB-D data term of one pixel",
     notebook="ex12_rgbd_data_term.ipynb",
-    answer_cells=("data_term_rows", "pixel_normal_equations"),
+    answer_cells=("data_term_rows", "pixel_normal_equations", "unseen_direction"),
     blocked=("flowtrack.rgbd_flow", "flowtrack._rgbd_kernels", "flowtrack.sceneflow", "flowtrack.symbolic",
              "flowtrack.camera"),
     allowed=('numpy',),
-    tests=(_ex12_rows_public, _ex12_rows_hidden, _ex12_normal_public, _ex12_normal_hidden),
+    tests=(_ex12_rows_public, _ex12_rows_hidden, _ex12_normal_public, _ex12_normal_hidden,
+           _ex12_unseen_public, _ex12_unseen_hidden),
     packages=("flowtrack",),
+    mistakes=MISTAKES,
 )
