@@ -550,6 +550,33 @@ def test_ex12_grades_the_motion_a_pixel_cannot_see():
     assert check(Outcome(True, (a_d / np.linalg.norm(a_d, axis=1, keepdims=True)).tolist()))[0] == 0.0
 
 
+def test_ex12_null_dimension_matches_the_lessons_count_and_scipy():
+    """The count ex12 grades against: the lesson's reasoning (random texture 0, stripes 1, no texture
+    2, one textured pixel 0 for lam > 0; the per-pixel count for lam = 0) and scipy's null_space
+    (an SVD with its own cut-off) on the grader's own inputs; the wrong answers differ from it."""
+    import scipy.sparse as sps
+    from scipy.linalg import null_space
+
+    from flowtrack.variational import grid_laplacian
+
+    ex12 = exercise_module("ex12_rgbd_data_term")
+    rng = np.random.default_rng(2929)
+    for kind, k in ex12.TEXTURES.items():
+        for H, W in ((3, 3), (3, 5), (5, 4)):
+            N = ex12._system(rng, kind, H, W)
+            per_pixel = (2 if kind.startswith("flat") else 1) * H * W - (kind == "flat but one pixel")
+            for lam in (0.0, 0.05, 5.0):
+                want = per_pixel if lam == 0.0 else k
+                A = (sps.block_diag(list(N)) + lam * sps.kron(grid_laplacian(H, W), sps.eye(3))).toarray()
+                assert null_space(A, rcond=1e-11).shape[1] == want, (kind, H, W, lam)
+                assert ex12.null_dimension_reference(N, H, W, lam) == want
+                check = ex12.null_dimension_check(N, H, W, lam)
+                assert check(Outcome(True, want))[0] == 1.0
+                if lam > 0:
+                    assert check(Outcome(True, per_pixel))[0] == 0.0
+                    assert check(Outcome(True, 3 * H * W - want))[0] == 0.0
+
+
 def test_ex08_expected_optimum_matches_brute_force():
     """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
     assignment_check = exercise_module("ex08_hungarian").assignment_check

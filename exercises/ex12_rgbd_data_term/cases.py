@@ -40,6 +40,8 @@ CHEAT = {
 """),
     'unseen_direction': ('prepend', """import flowtrack.rgbd_flow  # blocked
 """),
+    'system_null_dimension': ('prepend', """import flowtrack.rgbd_flow as _blocked_reference  # blocked
+"""),
 }
 
 #: (mistake id, answer): each mistake this exercise names, written as code
@@ -50,9 +52,20 @@ MISTAKES = [
     ('unseen-seen-direction', {
         'unseen_direction': ('body', 'return a_d / np.linalg.norm(a_d, axis=1, keepdims=True)'),
     }),
+    ('null-dimension-no-smoothness', {
+        'system_null_dimension': ('body', """
+ev = np.linalg.eigvalsh(np.asarray(N, dtype=float))
+return int(np.sum(ev <= 1e-9 * ev[:, -1:]))
+"""),
+    }),
+    ('null-dimension-rank', {
+        'system_null_dimension': ('replace', 'return int(np.sum(ev <= 1e-9 * ev[-1]))',
+                                  'return int(np.sum(ev > 1e-9 * ev[-1]))'),
+    }),
 ]
 
 #: (answer cell, new body): wrong answers that are none of the catalogued mistakes
 UNRELATED = [
     ('unseen_direction', 'return np.tile([0.0, 0.0, 1.0], (len(a_i), 1))'),
+    ('system_null_dimension', 'return 1'),
 ]
