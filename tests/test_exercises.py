@@ -577,6 +577,36 @@ def test_ex12_null_dimension_matches_the_lessons_count_and_scipy():
                     assert check(Outcome(True, 3 * H * W - want))[0] == 0.0
 
 
+def test_ex07_gamma_is_the_log_likelihood_ratio_of_scipys_gaussian():
+    """The gamma ex07 grades: (C - gamma) / 2 is the negative log-likelihood ratio of clutter against
+    a true detection, -ln(P_D N(z; z_hat, S) / ((1 - P_D) lam_c)), with scipy's Gaussian density;
+    the decision follows its sign, and the catalogued wrong gammas differ from it."""
+    from scipy.stats import multivariate_normal
+
+    ex07 = exercise_module("ex07_mahalanobis_gating")
+    rng = np.random.default_rng(729)
+    for m in (1, 2, 3):
+        z_pred, S, Z = ex07._ex07_random(rng, 3, 4, m)
+        P_D, lam_c = 0.85, 0.002
+        g = ex07.association_gamma(S, P_D, lam_c)
+        for i in range(3):
+            for j in range(4):
+                d = Z[j] - z_pred[i]
+                C = d @ np.linalg.solve(S[i], d)
+                pdf = multivariate_normal(z_pred[i], S[i]).pdf(Z[j])
+                nllr = -np.log(P_D * pdf / ((1 - P_D) * lam_c))
+                np.testing.assert_allclose((C - g[i]) / 2, nllr, rtol=1e-9, atol=1e-9)
+        C = np.array([[g[0] - 0.5, g[0] + 0.5], [g[1] + 1.0, g[1] - 1.0], [0.0, g[2] + 3.0]])
+        check = ex07._ex07_take_check(C, S, P_D, lam_c)
+        take = [[True, False], [False, True], [bool(g[2] > 0), False]]
+        assert check(Outcome(True, (g.tolist(), take)))[0] == 1.0
+        logdet = np.linalg.slogdet(S)[1]
+        wrong = g + m * np.log(2 * np.pi)                     # det(S) for det(2 pi S)
+        assert check(Outcome(True, (wrong.tolist(), take)))[0] == 0.5
+        wrong = g - (m * np.log(2 * np.pi) + logdet)          # det(2 pi S) not square-rooted
+        assert check(Outcome(True, (wrong.tolist(), take)))[0] == 0.5
+
+
 def test_ex08_expected_optimum_matches_brute_force():
     """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
     assignment_check = exercise_module("ex08_hungarian").assignment_check
