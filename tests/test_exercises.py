@@ -607,6 +607,31 @@ def test_ex07_gamma_is_the_log_likelihood_ratio_of_scipys_gaussian():
         assert check(Outcome(True, (wrong.tolist(), take)))[0] == 0.5
 
 
+def test_ex06_velocity_nees_is_chi2_3_when_the_covariance_is_right():
+    """The NEES ex06 grades: errors drawn from N(0, C + alpha^2 v v^T) give a mean near 3 (chi2_3,
+    Monte Carlo with 20000 draws: its standard error is 0.017); a covariance 10x too confident in
+    std gives 100 times that; the catalogued wrong answers differ from it."""
+    ex06 = exercise_module("ex06_kalman_predict_update")
+    rng = np.random.default_rng(606)
+    K = 20000
+    v_meas = rng.normal(scale=0.1, size=(K, 3))
+    A = rng.normal(scale=0.01, size=(K, 3, 3))
+    C = A @ np.swapaxes(A, 1, 2) + 1e-5 * np.eye(3)
+    alpha = 0.5
+    full = C + alpha**2 * np.einsum("ki,kj->kij", v_meas, v_meas)
+    e = np.einsum("kij,kj->ki", np.linalg.cholesky(full), rng.normal(size=(K, 3)))
+    eps, mean = ex06.velocity_nees_reference(v_meas, v_meas - e, C, alpha)
+    explicit = np.array([e[k] @ np.linalg.inv(full[k]) @ e[k] for k in range(50)])
+    np.testing.assert_allclose(eps[:50], explicit, rtol=1e-8)
+    assert abs(mean - 3.0) < 0.07
+    _, mean_small = ex06.velocity_nees_reference(v_meas, v_meas - 10.0 * e, C, alpha)
+    assert 250.0 < mean_small < 350.0
+    check = ex06._nees_check(v_meas[:5], v_meas[:5] - e[:5], C[:5], alpha)
+    assert check(Outcome(True, (eps[:5].tolist(), float(eps[:5].mean()))))[0] == 1.0
+    no_shared, _ = ex06.velocity_nees_reference(v_meas[:5], v_meas[:5] - e[:5], C[:5], 0.0)
+    assert check(Outcome(True, (no_shared.tolist(), float(no_shared.mean()))))[0] == 0.0
+
+
 def test_ex08_expected_optimum_matches_brute_force():
     """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
     assignment_check = exercise_module("ex08_hungarian").assignment_check
