@@ -476,6 +476,163 @@ def test_ex12_expected_values_match_the_sympy_data_term():
         np.testing.assert_allclose(b[k], b_k, rtol=1e-10, atol=1e-9)
 
 
+def _markdown(ex_id: str) -> str:
+    return "\n".join(c.source for c in _read(get_exercise(ex_id)).cells if c.cell_type == "markdown")
+
+
+def test_ex12_says_n_is_half_the_hessian_and_b_minus_half_the_gradient():
+    """N = 1/2 Hessian and b = -1/2 gradient of E_p at 0 (finite differences of the weighted energy,
+    against the reference), and the notebook says so, in its text and in its test cell."""
+    ex12 = exercise_module("ex12_rgbd_data_term")
+    rng = np.random.default_rng(29)
+    X, gi, ri, gd, rd, fx, fy = ex12._random_pixels(rng, 1)
+    wi, wd = 2500.0, 62500.0
+    N, b = (v[0] for v in ex12._reference(X, gi, ri, gd, rd, fx, fy, wi, wd))
+    a_i, a_d = (v[0] for v in ex12._rows(X, gi, gd, fx, fy))
+
+    def E(d):
+        return wi * (ri[0] + a_i @ d) ** 2 + wd * (rd[0] + a_d @ d) ** 2
+
+    h, eye = 1e-4, np.eye(3)
+    grad = np.array([(E(h * e) - E(-h * e)) / (2 * h) for e in eye])
+    hess = np.array([[(E(h * (e + f)) - E(h * (e - f)) - E(h * (f - e)) + E(-h * (e + f))) / (4 * h * h)
+                      for f in eye] for e in eye])
+    np.testing.assert_allclose(N, hess / 2, rtol=1e-5, atol=1e-6 * np.abs(N).max())
+    np.testing.assert_allclose(b, -grad / 2, rtol=1e-6, atol=1e-9 * np.abs(grad).max())
+    text = _markdown("ex12_rgbd_data_term")
+    assert "half\nthe Hessian" in text or "half the Hessian" in text
+    assert "minus half its gradient" in text
+    test_cell = next(c.source for c in _read(get_exercise("ex12_rgbd_data_term")).cells
+                     if _nbg(c).get("grade_id") == "test_normal_equations")
+    assert not re.search(r"N and b are the Hessian and minus the gradient", test_cell)
+    assert "half the Hessian" in test_cell
+
+
+def test_ex12_does_not_claim_that_smoothing_makes_the_system_definite():
+    """With stripes on a fronto-parallel plane, diag(N_p) + lam (L kron I3) keeps a null direction for
+    every lam (the reference's N_p and grid Laplacian, numpy's eigenvalues): the notebook must not
+    say that adding the smoothness term makes the system positive definite."""
+    import scipy.sparse as sps
+
+    from flowtrack.variational import grid_laplacian
+
+    ex12 = exercise_module("ex12_rgbd_data_term")
+    H, W = 3, 4
+    yy, xx = np.mgrid[0:H, 0:W].astype(float)
+    X = np.stack([(xx - 1.5) / 100.0, (yy - 1.0) / 100.0, np.ones_like(xx)], axis=-1).reshape(-1, 3)
+    gi = np.column_stack([np.random.default_rng(1).uniform(0.5, 1.0, H * W), np.zeros(H * W)])
+    gd = np.zeros((H * W, 2))
+    N, _ = ex12._reference(X, gi, np.zeros(H * W), gd, np.zeros(H * W), 100.0, 100.0, 1.0, 1.0)
+    for lam in (0.1, 10.0):
+        A = (sps.block_diag(list(N)) + lam * sps.kron(grid_laplacian(H, W), sps.eye(3))).toarray()
+        w, V = np.linalg.eigh(A)
+        assert w[0] < 1e-12 * w[-1] < w[1]                          # exactly one null direction
+        along = np.tile([0.0, 1.0, 0.0], (H * W, 1)) / np.sqrt(H * W)  # uniform motion along the stripes
+        np.testing.assert_allclose(np.abs(V[:, 0].reshape(-1, 3)), along, atol=1e-9)
+    text = " ".join(_markdown("ex12_rgbd_data_term").split())
+    assert not re.search(r"(λ|\\lambda)[^.]*\bmakes\b[^.]*positive definite", text)
+    assert "does not make the\nsystem positive definite".replace("\n", " ") in text
+
+
+def test_ex12_grades_the_motion_a_pixel_cannot_see():
+    """The question of the notebook is a graded answer: the unit vector along a_I x a_D, either sign
+    per pixel; its length and a row of the data term are wrong."""
+    ex = get_exercise("ex12_rgbd_data_term")
+    ex12 = exercise_module("ex12_rgbd_data_term")
+    assert "unseen_direction" in ex.answer_cells
+    tests = [t for t in ex.tests if t.grade_id == "test_unseen"]
+    assert {t.hidden for t in tests} == {False, True}
+    a_i, a_d = ex12._rows(ex12._X, ex12._GI, ex12._GD, 100.0, 100.0)
+    check = ex12.unseen_check(a_i, a_d)
+    u = np.cross(a_i, a_d)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    assert check(Outcome(True, (u * [[1.0], [-1.0], [1.0]]).tolist()))[0] == 1.0
+    assert check(Outcome(True, np.cross(a_i, a_d).tolist()))[0] == 0.0
+    assert check(Outcome(True, (a_d / np.linalg.norm(a_d, axis=1, keepdims=True)).tolist()))[0] == 0.0
+
+
+def test_ex12_null_dimension_matches_the_lessons_count_and_scipy():
+    """The count ex12 grades against: the lesson's reasoning (random texture 0, stripes 1, no texture
+    2, one textured pixel 0 for lam > 0; the per-pixel count for lam = 0) and scipy's null_space
+    (an SVD with its own cut-off) on the grader's own inputs; the wrong answers differ from it."""
+    import scipy.sparse as sps
+    from scipy.linalg import null_space
+
+    from flowtrack.variational import grid_laplacian
+
+    ex12 = exercise_module("ex12_rgbd_data_term")
+    rng = np.random.default_rng(2929)
+    for kind, k in ex12.TEXTURES.items():
+        for H, W in ((3, 3), (3, 5), (5, 4)):
+            N = ex12._system(rng, kind, H, W)
+            per_pixel = (2 if kind.startswith("flat") else 1) * H * W - (kind == "flat but one pixel")
+            for lam in (0.0, 0.05, 5.0):
+                want = per_pixel if lam == 0.0 else k
+                A = (sps.block_diag(list(N)) + lam * sps.kron(grid_laplacian(H, W), sps.eye(3))).toarray()
+                assert null_space(A, rcond=1e-11).shape[1] == want, (kind, H, W, lam)
+                assert ex12.null_dimension_reference(N, H, W, lam) == want
+                check = ex12.null_dimension_check(N, H, W, lam)
+                assert check(Outcome(True, want))[0] == 1.0
+                if lam > 0:
+                    assert check(Outcome(True, per_pixel))[0] == 0.0
+                    assert check(Outcome(True, 3 * H * W - want))[0] == 0.0
+
+
+def test_ex07_gamma_is_the_log_likelihood_ratio_of_scipys_gaussian():
+    """The gamma ex07 grades: (C - gamma) / 2 is the negative log-likelihood ratio of clutter against
+    a true detection, -ln(P_D N(z; z_hat, S) / ((1 - P_D) lam_c)), with scipy's Gaussian density;
+    the decision follows its sign, and the catalogued wrong gammas differ from it."""
+    from scipy.stats import multivariate_normal
+
+    ex07 = exercise_module("ex07_mahalanobis_gating")
+    rng = np.random.default_rng(729)
+    for m in (1, 2, 3):
+        z_pred, S, Z = ex07._ex07_random(rng, 3, 4, m)
+        P_D, lam_c = 0.85, 0.002
+        g = ex07.association_gamma(S, P_D, lam_c)
+        for i in range(3):
+            for j in range(4):
+                d = Z[j] - z_pred[i]
+                C = d @ np.linalg.solve(S[i], d)
+                pdf = multivariate_normal(z_pred[i], S[i]).pdf(Z[j])
+                nllr = -np.log(P_D * pdf / ((1 - P_D) * lam_c))
+                np.testing.assert_allclose((C - g[i]) / 2, nllr, rtol=1e-9, atol=1e-9)
+        C = np.array([[g[0] - 0.5, g[0] + 0.5], [g[1] + 1.0, g[1] - 1.0], [0.0, g[2] + 3.0]])
+        check = ex07._ex07_take_check(C, S, P_D, lam_c)
+        take = [[True, False], [False, True], [bool(g[2] > 0), False]]
+        assert check(Outcome(True, (g.tolist(), take)))[0] == 1.0
+        logdet = np.linalg.slogdet(S)[1]
+        wrong = g + m * np.log(2 * np.pi)                     # det(S) for det(2 pi S)
+        assert check(Outcome(True, (wrong.tolist(), take)))[0] == 0.5
+        wrong = g - (m * np.log(2 * np.pi) + logdet)          # det(2 pi S) not square-rooted
+        assert check(Outcome(True, (wrong.tolist(), take)))[0] == 0.5
+
+
+def test_ex06_velocity_nees_is_chi2_3_when_the_covariance_is_right():
+    """The NEES ex06 grades: errors drawn from N(0, C + alpha^2 v v^T) give a mean near 3 (chi2_3,
+    Monte Carlo with 20000 draws: its standard error is 0.017); a covariance 10x too confident in
+    std gives 100 times that; the catalogued wrong answers differ from it."""
+    ex06 = exercise_module("ex06_kalman_predict_update")
+    rng = np.random.default_rng(606)
+    K = 20000
+    v_meas = rng.normal(scale=0.1, size=(K, 3))
+    A = rng.normal(scale=0.01, size=(K, 3, 3))
+    C = A @ np.swapaxes(A, 1, 2) + 1e-5 * np.eye(3)
+    alpha = 0.5
+    full = C + alpha**2 * np.einsum("ki,kj->kij", v_meas, v_meas)
+    e = np.einsum("kij,kj->ki", np.linalg.cholesky(full), rng.normal(size=(K, 3)))
+    eps, mean = ex06.velocity_nees_reference(v_meas, v_meas - e, C, alpha)
+    explicit = np.array([e[k] @ np.linalg.inv(full[k]) @ e[k] for k in range(50)])
+    np.testing.assert_allclose(eps[:50], explicit, rtol=1e-8)
+    assert abs(mean - 3.0) < 0.07
+    _, mean_small = ex06.velocity_nees_reference(v_meas, v_meas - 10.0 * e, C, alpha)
+    assert 250.0 < mean_small < 350.0
+    check = ex06._nees_check(v_meas[:5], v_meas[:5] - e[:5], C[:5], alpha)
+    assert check(Outcome(True, (eps[:5].tolist(), float(eps[:5].mean()))))[0] == 1.0
+    no_shared, _ = ex06.velocity_nees_reference(v_meas[:5], v_meas[:5] - e[:5], C[:5], 0.0)
+    assert check(Outcome(True, (no_shared.tolist(), float(no_shared.mean()))))[0] == 0.0
+
+
 def test_ex08_expected_optimum_matches_brute_force():
     """The Hungarian check's optimum (scipy) agrees with brute force on small matrices with ties."""
     assignment_check = exercise_module("ex08_hungarian").assignment_check

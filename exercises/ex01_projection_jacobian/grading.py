@@ -151,21 +151,23 @@ MISTAKES = (
     Mistake(
         "jacobian-sign",
         "the d/dZ entries have the wrong sign: x = fx X/Z + cx decreases as Z grows, so dx/dZ = "
-        f"-fx X/Z^2 (and dy/dZ = -fy Y/Z^2); see {_L1} §2",
+        f"-fx X/Z^2 (and dy/dZ = -fy Y/Z^2); see {_L1} §2 (the projection Jacobian)",
     ),
     Mistake(
         "jacobian-fx-fy-swapped",
         "fx and fy are swapped: the image x coordinate scales with fx and y with fy, so row 0 of "
-        f"the Jacobian carries fx and row 1 fy (they differ on real cameras); see {_L1} §1-2",
+        "the Jacobian carries fx and row 1 fy (they differ on real cameras); "
+        f"see {_L1} §1-2 (the pinhole projection and its Jacobian)",
     ),
     Mistake(
         "jacobian-z-not-squared",
-        f"the d/dZ entries divide by Z instead of Z^2: d(X/Z)/dZ = -X/Z^2 (quotient rule); see {_L1} §2",
+        "the d/dZ entries divide by Z instead of Z^2: d(X/Z)/dZ = -X/Z^2 (quotient rule); "
+        f"see {_L1} §2 (the projection Jacobian)",
     ),
     Mistake(
         "projection-missing-principal-point",
         "the principal point is missing: pixel coordinates are fx X/Z + cx and fy Y/Z + cy, "
-        f"(cx, cy) moves the origin to the image corner; see {_L1} §1",
+        f"(cx, cy) moves the origin to the image corner; see {_L1} §1 (the pinhole projection)",
     ),
 )
 
@@ -191,6 +193,6 @@ LANGUAGE_MISTAKES = (
     Mistake(
         "jacobian-no-focal",
         "the focal lengths are missing: u = fx X/Z + cx and v = fy Y/Z + cy, so row 0 of the Jacobian "
-        f"carries fx and row 1 fy; see {_L1} §1-2",
+        f"carries fx and row 1 fy; see {_L1} §1-2 (the pinhole projection and its Jacobian)",
     ),
 )

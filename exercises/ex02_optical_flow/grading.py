@@ -104,12 +104,13 @@ MISTAKES = (
     Mistake(
         "missing-dt",
         "the time step is missing: J(X) v is a pixel velocity (px/s); the flow between two frames "
-        f"is the displacement u = J(X) v dt; see {_L1} §3",
+        f"is the displacement u = J(X) v dt; see {_L1} §3 (scene flow induces optical flow)",
     ),
     Mistake(
         "flow-ignores-depth-motion",
         "motion along Z is ignored: the Jacobian's third column -f X/Z^2 turns approaching or "
-        f"receding into image motion (expansion), u = J(X) v dt uses all of v; see {_L1} §3",
+        "receding into image motion (expansion), u = J(X) v dt uses all of v; "
+        f"see {_L1} §3 (scene flow induces optical flow)",
     ),
 )
 

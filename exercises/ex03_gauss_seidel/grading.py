@@ -333,30 +333,33 @@ MISTAKES = (
         "jacobi-not-gauss-seidel",
         "this is a Jacobi sweep: every pixel is updated from the old iterate. In red-black "
         "Gauss-Seidel the black pixels use the red values just computed in the same sweep (which "
-        f"is why it converges about twice as fast); see {_L2} §4",
+        f"is why it converges about twice as fast); see {_L2} §A.2 (red-black Gauss–Seidel, Young's theorem)",
     ),
     Mistake(
         "black-before-red",
         "black pixels are updated before red ones: the sweep must update the red pixels (i + j "
-        f"even) first, then the black ones from the new red values; see {_L2} §4",
+        f"even) first, then the black ones from the new red values; see {_L2} §A.2 (red-black Gauss–Seidel)",
     ),
     Mistake(
         "dense-solve-not-sweeps",
         "the result does not come from red-black sweeps: after max_sweeps sweeps the iterate is "
         "still far from the solution, yours is the exact solution of a direct solve. The exercise "
-        f"is the iteration (a dense solve needs O(N^2) memory on an image); see {_L2} §4",
+        "is the iteration (a dense solve needs O(N^2) memory on an image); "
+        f"see {_L2} §A.2 (Gauss–Seidel sweeps, not a dense solve)",
     ),
     Mistake(
         "residual-rate-not-gauss-seidel",
         "the residual does not shrink at the red-black Gauss-Seidel rate: one sweep multiplies it by "
         "about rho(G_GS) = rho(G_Jacobi)^2 on the model problem, yours by another factor, so each "
         "sweep is not one Gauss-Seidel sweep (over- or under-relaxed updates, a sweep counted "
-        f"twice or skipped, pixels updated from stale values); see {_L2} §5",
+        "twice or skipped, pixels updated from stale values); "
+        f"see {_L2} §A.2 (the convergence rate of Gauss–Seidel, Young's theorem)",
     ),
     Mistake(
         "neumann-boundary-degree",
         "every pixel is given 4 neighbours: with the Neumann boundary a border pixel has 3 and a "
-        f"corner 2 (deg_p counts only the neighbours inside the grid); see {_L2} §3",
+        "corner 2 (deg_p counts only the neighbours inside the grid); "
+        f"see {_L2} §A.1 (the grid Laplacian, Neumann boundary)",
     ),
 )
 

@@ -118,12 +118,13 @@ MISTAKES = (
     Mistake(
         "knn-not-symmetrised",
         "the kNN graph is not symmetrised: j being among the k nearest of i does not make i one of "
-        f"j's; the graph keeps an edge when either holds, so W and L are symmetric; see {_L3} §1",
+        "j's; the graph keeps an edge when either holds, so W and L are symmetric; "
+        f"see {_L3} §1 (the k-NN graph and its Laplacian)",
     ),
     Mistake(
         "affinity-sigma-not-squared",
         "the affinity divides by sigma instead of sigma^2: w_ij = exp(-|X_i - X_j|^2 / sigma^2); see "
-        f"{_L3} §1",
+        f"{_L3} §1 (the graph's weights)",
     ),
 )
 

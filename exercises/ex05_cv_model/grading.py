@@ -104,17 +104,17 @@ MISTAKES = (
         "q-block-diagonal",
         "Q is block-diagonal blkdiag(Q1d, Q1d), which fits the state order [px, vx, py, vy]; for "
         "[px, py, vx, vy] each Q1d entry couples a position with its own velocity: Q = Q1d kron I2 "
-        f"(the syllabus listings' bug); see {_L4} §3",
+        f"(the syllabus listings' bug); see {_L4} §3 (deriving Q, the ordering bug)",
     ),
     Mistake(
         "q-continuous-white-noise",
         "this is the continuous white-noise model (dt^3/3, dt^2/2, dt); the exercise asks for the "
         "discrete white-noise acceleration Q = q G G^T with G = [dt^2/2, dt] (dt^4/4, dt^3/2, dt^2); "
-        f"see {_L4} §3",
+        f"see {_L4} §3 (deriving Q)",
     ),
     Mistake(
         "q-missing-q",
-        f"Q is not scaled by the acceleration variance q (Q = q G G^T); see {_L4} §3",
+        f"Q is not scaled by the acceleration variance q (Q = q G G^T); see {_L4} §3 (deriving Q)",
     ),
 )
 

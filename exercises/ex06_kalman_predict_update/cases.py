@@ -35,6 +35,8 @@ CHEAT = {
     kf.update(z)
     return kf.x, kf.P
 """),
+    'velocity_nees': ('prepend', """import flowtrack.kalman as _blocked_reference  # blocked
+"""),
 }
 
 #: (mistake id, answer): each mistake this exercise names, written as code
@@ -48,9 +50,21 @@ MISTAKES = [
     ('generic-sign', {
         'kf_predict': ('replace', 'x = F @ x', 'x = -(F @ x)'),
     }),
+    ('nees-shared-error-left-out', {
+        'velocity_nees': ('replace', 'np.asarray(C, dtype=float) + alpha**2 * np.einsum("ki,kj->kij", v, v)',
+                          'np.asarray(C, dtype=float)'),
+    }),
+    ('nees-covariance-not-inverted', {
+        'velocity_nees': ('replace', 'np.linalg.solve(Cs, e[..., None])[..., 0]', 'np.einsum("kij,kj->ki", Cs, e)'),
+    }),
+    ('nees-shared-error-along-the-truth', {
+        'velocity_nees': ('replace', 'np.einsum("ki,kj->kij", v, v)',
+                          'np.einsum("ki,kj->kij", np.asarray(v_true), np.asarray(v_true))'),
+    }),
 ]
 
 #: (answer cell, new body): wrong answers that are none of the catalogued mistakes
 UNRELATED = [
     ('kf_update', 'return np.asarray(x) + 1.0, np.asarray(P) * 0.5'),
+    ('velocity_nees', 'return np.full(len(v_meas), 3.0), 3.0'),
 ]

@@ -96,7 +96,7 @@ def _ex06_predict_public(rng):
     return [("kf_predict", args, {}, _predict_check(*args))]
 
 
-@graded_test("predict: random models", "test_predict", 3.0, hidden=True)
+@graded_test("predict: random models", "test_predict", 2.0, hidden=True)
 def _ex06_predict_hidden(rng):
     out = []
     for n in (1, 3, 4, 6):
@@ -111,7 +111,7 @@ def _ex06_update_public(rng):
     return [("kf_update", args, {}, _update_check(*args))]
 
 
-@graded_test("update: random models", "test_update", 4.0, hidden=True)
+@graded_test("update: random models", "test_update", 3.0, hidden=True)
 def _ex06_update_hidden(rng):
     out = []
     for n, m in ((1, 1), (4, 2), (6, 3), (3, 3)):
@@ -120,20 +120,91 @@ def _ex06_update_hidden(rng):
     return out
 
 
+def velocity_nees_reference(v_meas, v_true, C, alpha):
+    """eps_k = e_k^T (C_k + alpha^2 v_k v_k^T)^-1 e_k with e_k = v_meas_k - v_true_k (lesson 6 §5b)
+    and their mean: shapes (K,) and ()."""
+    v = np.asarray(v_meas, dtype=float)
+    e = v - np.asarray(v_true, dtype=float)
+    Cs = np.asarray(C, dtype=float) + alpha**2 * np.einsum("ki,kj->kij", v, v)
+    eps = np.einsum("ki,ki->k", e, np.linalg.solve(Cs, e[..., None])[..., 0])
+    return eps, float(eps.mean())
+
+
+def _nees_check(v_meas, v_true, C, alpha):
+    eps, mean = velocity_nees_reference(v_meas, v_true, C, alpha)
+    e = np.asarray(v_meas) - np.asarray(v_true)
+    no_shared, _ = velocity_nees_reference(v_meas, v_true, C, 0.0)
+    Cs = np.asarray(C) + alpha**2 * np.einsum("ki,kj->kij", v_meas, v_meas)
+    not_inverted = np.einsum("ki,kij,kj->k", e, Cs, e)
+    truth_shared = np.einsum("ki,ki->k", e, np.linalg.solve(
+        np.asarray(C) + alpha**2 * np.einsum("ki,kj->kij", v_true, v_true), e[..., None])[..., 0])
+    variants = [Variant("nees-shared-error-left-out", no_shared),
+                Variant("nees-covariance-not-inverted", not_inverted),
+                Variant("nees-shared-error-along-the-truth", truth_shared)]
+    mean_variants = [Variant(v.mistake, np.array(float(np.mean(v.value)))) for v in variants]
+    checks = [array_check(eps, variants=variants), array_check(np.array(mean), variants=mean_variants)]
+    return tuple_check(checks, ["eps", "mean"])
+
+
+_EX06_VM = np.array([[0.10, 0.00, 0.00], [0.00, 0.05, 0.02], [0.03, -0.04, 0.00]])
+_EX06_VT = np.array([[0.12, 0.01, 0.00], [0.00, 0.04, 0.02], [0.02, -0.04, 0.01]])
+_EX06_CV = np.array([np.eye(3) * 1e-4, np.diag([1e-4, 4e-4, 1e-4]), np.eye(3) * 2e-4])
+
+
+@graded_test("velocity NEES: three measurements", "test_nees", 0.5, hidden=False)
+def _ex06_nees_public(rng):
+    args = (_EX06_VM, _EX06_VT, _EX06_CV, 0.5)
+    return [("velocity_nees", args, {}, _nees_check(*args))]
+
+
+@graded_test("velocity NEES: random velocities, covariances and shared-error fractions", "test_nees", 1.5,
+             hidden=True)
+def _ex06_nees_hidden(rng):
+    out = []
+    for K in (1, 5, 20):
+        v_true = rng.normal(scale=0.1, size=(K, 3))
+        A = rng.normal(scale=0.01, size=(K, 3, 3))
+        C = A @ np.swapaxes(A, 1, 2) + 1e-5 * np.eye(3)
+        v_meas = v_true + rng.normal(scale=0.02, size=(K, 3))
+        alpha = float(rng.uniform(0.2, 0.8))
+        args = (v_meas, v_true, C, alpha)
+        out.append(("velocity_nees", args, {}, _nees_check(*args)))
+    return out
+
+
 # The catalogued mistakes this exercise defines: stable ids (instructors' reports count them
 # across terms), what the mistake is, why it is wrong, which lesson section explains it.
 _L4 = "lesson 04_bayes_and_kalman"
+_L6 = "lesson 06_flow_to_tracks"
+_5B = "§5b (coasting through an occlusion and a crossing, with and without flow)"
 
 MISTAKES = (
     Mistake(
         "innovation-without-R",
         "the innovation covariance lacks R: S = H P H^T + R, the measurement noise adds to the "
-        f"predicted spread (without it the filter trusts the measurement too much); see {_L4} §4",
+        "predicted spread (without it the filter trusts the measurement too much); "
+        f"see {_L4} §4 (the Kalman gain, derived from the measurement and its covariance)",
     ),
     Mistake(
         "predict-without-Q",
         "the predicted covariance lacks Q: P = F P F^T + Q, the process noise is what keeps the "
-        f"filter from becoming over-confident; see {_L4} §2 and §6",
+        "filter from becoming over-confident; "
+        f"see {_L4} §2 and §6 (the constant-velocity model, the steady state)",
+    ),    Mistake(
+        "nees-shared-error-left-out",
+        "the covariance lacks the error the whole cluster shares, alpha^2 v v^T along the measured "
+        "velocity: the flow residuals cannot see it, and without it the filter trusts the velocity "
+        f"far too much; see {_L6} {_5B}",
+    ),
+    Mistake(
+        "nees-covariance-not-inverted",
+        "this is e^T C e: the normalised error weighs e by the inverse covariance, e^T C^-1 e "
+        f"(solve with C); see {_L6} {_5B}",
+    ),
+    Mistake(
+        "nees-shared-error-along-the-truth",
+        "the shared error is modelled along the true velocity: the filter only has the measured one, "
+        f"alpha^2 v_meas v_meas^T; see {_L6} {_5B}",
     ),
 )
 
@@ -142,10 +213,11 @@ EXERCISE = Exercise(
     id="ex06_kalman_predict_update",
     title="Kalman predict and update",
     notebook="ex06_kalman_predict_update.ipynb",
-    answer_cells=("kf_predict", "kf_update"),
+    answer_cells=("kf_predict", "kf_update", "velocity_nees"),
     blocked=("flowtrack.kalman", "flowtrack.tracking", "flowtrack.particle", "flowtrack.bayes"),
     allowed=('numpy', 'scipy.linalg'),
-    tests=(_ex06_predict_public, _ex06_predict_hidden, _ex06_update_public, _ex06_update_hidden),
+    tests=(_ex06_predict_public, _ex06_predict_hidden, _ex06_update_public, _ex06_update_hidden,
+           _ex06_nees_public, _ex06_nees_hidden),
     packages=("flowtrack",),
     mistakes=MISTAKES,
 )
@@ -159,11 +231,12 @@ LANGUAGE_MISTAKES = (
     Mistake(
         "kalman-no-predict",
         "the update starts from x and P as they were: a step first predicts them (x = F x, "
-        f"P = F P F^T + Q), then updates the prediction with z; see {_L4} §2 and §4",
+        "P = F P F^T + Q), then updates the prediction with z; "
+        f"see {_L4} §2 and §4 (the constant-velocity model, the Kalman gain)",
     ),
     Mistake(
         "kalman-prior-cov",
         "P is the predicted covariance F P F^T + Q: the update must shrink it, P = (I - K H) P "
-        f"(the measurement adds information); see {_L4} §4",
+        f"(the measurement adds information); see {_L4} §4 (the Kalman gain and the posterior covariance)",
     ),
 )

@@ -29,6 +29,8 @@ CHEAT = {
     C = m(z_pred, S, Z)
     return np.where(C <= chi2_gate(z_pred.shape[1], prob), C, np.inf)
 """),
+    'worth_taking': ('prepend', """import flowtrack.association as _blocked_reference  # blocked
+"""),
 }
 
 #: (mistake id, answer): each mistake this exercise names, written as code
@@ -56,10 +58,17 @@ return np.einsum("mni,mij,mnj->mn", d, np.asarray(S, dtype=float), d)
     ('gate-prob-as-threshold', {
         'gated_cost': ('replace', 'chi2.ppf(prob, np.shape(z_pred)[1])', 'prob'),
     }),
+    ('gamma-det-without-2pi', {
+        'worth_taking': ('replace', 'np.linalg.slogdet(S)[1] + m * np.log(2.0 * np.pi)', 'np.linalg.slogdet(S)[1]'),
+    }),
+    ('gamma-det-not-square-rooted', {
+        'worth_taking': ('replace', '- log_det_2pi_s', '- 2.0 * log_det_2pi_s'),
+    }),
 ]
 
 #: (answer cell, new body): wrong answers that are none of the catalogued mistakes
 UNRELATED = [
     ('mahalanobis_cost', 'return np.ones((len(z_pred), len(Z)))'),
     ('gated_cost', 'C = mahalanobis_cost(z_pred, S, Z); return np.where(C <= 3.0, C, np.inf)'),
+    ('worth_taking', 'return np.zeros(len(C)), np.asarray(C) < 9.21'),
 ]

@@ -12,6 +12,7 @@ from flowtrack_course.grading.engine.authoring import (
     Variant,
     array_check,
     graded_test,
+    tuple_check,
 )
 
 
@@ -100,7 +101,7 @@ def _ex07_cost_public(rng):
     return [("mahalanobis_cost", args, {}, _ex07_cost_check(*args))]
 
 
-@graded_test("cost: random tracks and detections", "test_cost", 3.0, hidden=True)
+@graded_test("cost: random tracks and detections", "test_cost", 2.0, hidden=True)
 def _ex07_cost_hidden(rng):
     out = []
     for M, N, m in ((1, 1, 1), (3, 5, 2), (6, 4, 3), (5, 8, 2)):
@@ -129,7 +130,7 @@ def _ex07_gate_public(rng):
     return out
 
 
-@graded_test("gating: random tracks, detections and gate probabilities", "test_gating", 3.0, hidden=True)
+@graded_test("gating: random tracks, detections and gate probabilities", "test_gating", 2.0, hidden=True)
 def _ex07_gate_hidden(rng):
     out = []
     for (M, N, m), prob in (((3, 5, 2), 0.9), ((6, 4, 3), 0.99), ((5, 8, 1), 0.95), ((4, 4, 2), 0.5)):
@@ -140,6 +141,59 @@ def _ex07_gate_hidden(rng):
     return out
 
 
+def association_gamma(S: np.ndarray, P_D: float, lam_c: float) -> np.ndarray:
+    """gamma_i = 2 ln(P_D / ((1 - P_D) lam_c sqrt(det(2 pi S_i)))), shape (M,) (lesson 5 §3):
+    a pair (i, j) is worth taking when C_ij < gamma_i (its negative log-likelihood ratio is
+    (C_ij - gamma_i) / 2)."""
+    S = np.asarray(S, dtype=float)
+    m = S.shape[-1]
+    logdet = np.linalg.slogdet(S)[1] + m * np.log(2.0 * np.pi)
+    return 2.0 * np.log(P_D / ((1.0 - P_D) * lam_c)) - logdet
+
+
+def _ex07_take_check(C, S, P_D, lam_c):
+    g = association_gamma(S, P_D, lam_c)
+    S = np.asarray(S, dtype=float)
+    base = 2.0 * np.log(P_D / ((1.0 - P_D) * lam_c))
+    logdet_2pi_s = base - g
+    variants = [
+        Variant("gamma-det-without-2pi", base - np.linalg.slogdet(S)[1]),
+        Variant("gamma-det-not-square-rooted", base - 2.0 * logdet_2pi_s),
+    ]
+    take = (np.asarray(C, dtype=float) < g[:, None]).astype(float)
+    return tuple_check([array_check(g, variants=variants), array_check(take)], ["gamma", "take"])
+
+
+_EX07_C = np.array([[1.0, 12.0, 5.0], [8.0, 0.5, 3.0]])
+
+
+@graded_test("worth taking: gamma from P_D, clutter and S; two tracks", "test_take", 0.5, hidden=False)
+def _ex07_take_public(rng):
+    args = (_EX07_C, _EX07_S, 0.9, 0.01)
+    return [("worth_taking", args, {}, _ex07_take_check(*args))]
+
+
+@graded_test("worth taking: random S, P_D, clutter densities and costs", "test_take", 1.5, hidden=True)
+def _ex07_take_hidden(rng):
+    """Strata of equal difficulty: each call's P_D, clutter density, the eigenvalues of each S_i and
+    the offsets of the costs from gamma_i are a fixed script; the rotations of S_i and the order of
+    the offsets are drawn per student (a wrong gamma then flips the same number of decisions)."""
+    out = []
+    offsets = np.array([-3.0, -1.2, -0.4, 0.3, 1.0, 2.5])
+    script = (((1, 1), 0.9, 1e-4, [[2.0]]), ((3, 2), 0.8, 3e-4, [[0.5, 2.0], [1.0, 1.0], [3.0, 0.7]]),
+              ((2, 3), 0.95, 1e-3, [[0.6, 1.5, 2.5], [1.0, 1.0, 1.0]]))
+    for (M, m), P_D, lam_c, eigs in script:
+        S = np.empty((M, m, m))
+        for i in range(M):
+            Q = np.linalg.qr(rng.normal(size=(m, m)))[0]
+            S[i] = Q @ np.diag(eigs[i]) @ Q.T
+        S = 0.5 * (S + np.swapaxes(S, 1, 2))
+        g = association_gamma(S, P_D, lam_c)
+        C = g[:, None] + np.array([rng.permutation(offsets) for _ in range(M)])
+        args = (C, S, P_D, lam_c)
+        out.append(("worth_taking", args, {}, _ex07_take_check(*args)))
+    return out
+
 # The catalogued mistakes this exercise defines: stable ids (instructors' reports count them
 # across terms), what the mistake is, why it is wrong, which lesson section explains it.
 _L5 = "lesson 05_multi_object_tracking"
@@ -148,27 +202,42 @@ MISTAKES = (
     Mistake(
         "euclidean-not-mahalanobis",
         "this is the squared Euclidean distance: the Mahalanobis cost weighs the difference by "
-        f"S^-1, d^T S^-1 d, so an uncertain track accepts farther detections; see {_L5} §1",
+        "S^-1, d^T S^-1 d, so an uncertain track accepts farther detections; "
+        f"see {_L5} §1 (the Mahalanobis cost)",
     ),
     Mistake(
         "covariance-not-inverted",
         "S is used instead of its inverse: d^T S d grows with the uncertainty instead of "
-        f"shrinking; the cost is d^T S^-1 d (solve with S, or its Cholesky factor); see {_L5} §1",
+        "shrinking; the cost is d^T S^-1 d (solve with S, or its Cholesky factor); "
+        f"see {_L5} §1 (the Mahalanobis cost)",
     ),
     Mistake(
         "distance-not-squared",
         "this is the Mahalanobis distance, not its square: the chi-square gate applies to "
-        f"d^T S^-1 d, which is chi-square distributed with m degrees of freedom; see {_L5} §1",
+        "d^T S^-1 d, which is chi-square distributed with m degrees of freedom; "
+        f"see {_L5} §1 (the chi-square gate)",
     ),
     Mistake(
         "gate-wrong-dof",
         "the gate uses the wrong degrees of freedom: d^T S^-1 d is chi-square with m = the "
-        f"measurement dimension (z_pred.shape[1]) degrees of freedom; see {_L5} §1 and §3",
+        "measurement dimension (z_pred.shape[1]) degrees of freedom; "
+        f"see {_L5} §1 and §3 (the chi-square gate)",
     ),
     Mistake(
         "gate-prob-as-threshold",
         "the gate probability is used as the threshold: the threshold is the chi-square "
-        f"quantile chi2.ppf(prob, m), not prob itself; see {_L5} §1",
+        f"quantile chi2.ppf(prob, m), not prob itself; see {_L5} §1 (the chi-square gate)",
+    ),    Mistake(
+        "gamma-det-without-2pi",
+        "gamma uses det(S) where the Gaussian's normaliser has det(2 pi S) = (2 pi)^m det(S): "
+        "gamma = 2 ln(P_D / ((1 - P_D) lam_c sqrt(det(2 pi S)))); "
+        f"see {_L5} §3 (which objective?)",
+    ),
+    Mistake(
+        "gamma-det-not-square-rooted",
+        "gamma uses det(2 pi S) where the Gaussian's normaliser is its square root: "
+        "2 ln(sqrt(det(2 pi S))) = ln det(2 pi S); "
+        f"see {_L5} §3 (which objective?)",
     ),
 )
 
@@ -177,10 +246,11 @@ EXERCISE = Exercise(
     id="ex07_mahalanobis_gating",
     title="The Mahalanobis cost matrix with chi-square gating",
     notebook="ex07_mahalanobis_gating.ipynb",
-    answer_cells=("mahalanobis_cost", "gated_cost"),
+    answer_cells=("mahalanobis_cost", "gated_cost", "worth_taking"),
     blocked=("flowtrack.association", "flowtrack.tracking"),
     allowed=('numpy', 'scipy.stats', 'scipy.linalg'),
-    tests=(_ex07_cost_public, _ex07_cost_hidden, _ex07_gate_public, _ex07_gate_hidden),
+    tests=(_ex07_cost_public, _ex07_cost_hidden, _ex07_gate_public, _ex07_gate_hidden, _ex07_take_public,
+           _ex07_take_hidden),
     packages=("flowtrack",),
     mistakes=MISTAKES,
     depends=(

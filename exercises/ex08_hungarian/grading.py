@@ -185,16 +185,17 @@ MISTAKES = (
         "greedy-assignment",
         "this is a greedy assignment (cheapest pair first): it is not optimal when a cheap pair "
         "blocks two others; the Hungarian algorithm finds the minimum total cost; see "
-        f"{_L5} §2",
+        f"{_L5} §2 (the assignment problem)",
     ),
     Mistake(
         "assignment-maximises",
-        f"the assignment maximises the total cost instead of minimising it; see {_L5} §2",
+        "the assignment maximises the total cost instead of minimising it; "
+        f"see {_L5} §2 (the assignment problem)",
     ),
     Mistake(
         "brute-force-assignment",
         "right on small matrices but out of time on larger ones: trying every permutation costs "
-        f"n! (10! = 3.6 million); the Hungarian algorithm is O(n^3); see {_L5} §2",
+        f"n! (10! = 3.6 million); the Hungarian algorithm is O(n^3); see {_L5} §2 (the assignment problem)",
     ),
 )
 

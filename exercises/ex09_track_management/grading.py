@@ -207,22 +207,24 @@ MISTAKES = (
     Mistake(
         "deletion-off-by-one",
         "a confirmed track is deleted one frame early: it survives max_misses consecutive misses "
-        f"and is deleted at miss max_misses + 1; see {_L5} §4",
+        f"and is deleted at miss max_misses + 1; see {_L5} §4 (births, occlusions and deletions)",
     ),
     Mistake(
         "confirmation-off-by-one",
         "a track is confirmed one hit late: it is confirmed once it has min_hits hits (the birth "
-        f"counts as the first); see {_L5} §4",
+        f"counts as the first); see {_L5} §4 (births, occlusions and deletions)",
     ),
     Mistake(
         "tentative-track-coasts",
         "a tentative track survives a miss: only confirmed tracks coast; a tentative track missed "
-        f"once is deleted (most false alarms are never seen twice); see {_L5} §4",
+        "once is deleted (most false alarms are never seen twice); "
+        f"see {_L5} §4 (births, occlusions and deletions)",
     ),
     Mistake(
         "track-id-reused",
         "a track id is reused: every new track gets the next unused id, even for an object seen "
-        f"before (a reused id would merge two tracks in the metrics); see {_L5} §4-5",
+        "before (a reused id would merge two tracks in the metrics); "
+        f"see {_L5} §4-5 (births, deletions and what the metrics count)",
     ),
 )
 

@@ -170,12 +170,13 @@ MISTAKES = (
     Mistake(
         "clusters-by-position-only",
         "points are joined by position only: two touching objects moving differently must be "
-        f"separated by their velocities (|v_i - v_j| <= sigma_v); see {_L6} §1-2",
+        "separated by their velocities (|v_i - v_j| <= sigma_v); "
+        f"see {_L6} §1-2 (the motion affinity, motion clustering)",
     ),
     Mistake(
         "static-points-kept",
         "the static background is kept: points slower than min_speed are not moving objects and "
-        f"are dropped before clustering; see {_L6} §2-3",
+        f"are dropped before clustering; see {_L6} §2-3 (motion clustering, starting a track)",
     ),
 )
 

@@ -439,65 +439,74 @@ MISTAKES = (
     Mistake(
         "q-kron-for-this-order",
         "this is Q1d kron I2, the Q of the order [px, py, vx, vy]; with [px, vx, py, vy] each "
-        f"position sits next to its own velocity, so Q = blkdiag(Q1d, Q1d); see {_L4} §3",
+        "position sits next to its own velocity, so Q = blkdiag(Q1d, Q1d); "
+        f"see {_L4} §3 (deriving Q, the ordering bug)",
     ),
     Mistake(
         "el-laplacian-sign",
         "the smoothness term has the wrong sign: integrating 2 lam grad v . grad(dv) by parts gives "
-        f"-2 lam Lap(v) dv, so the equation is dt (a + v dt - b) - lam Lap(v) = 0; see {_L2} §2",
+        "-2 lam Lap(v) dv, so the equation is dt (a + v dt - b) - lam Lap(v) = 0; "
+        f"see {_L2} §3 (the Euler–Lagrange equation, Problem 2)",
     ),
     Mistake(
         "el-missing-inner-derivative",
         "the inner derivative dt is missing: d/dv (a + v dt - b)^2 = 2 dt (a + v dt - b) (chain "
-        f"rule); see {_L2} §2",
+        f"rule); see {_L2} §3 (the Euler–Lagrange equation, Problem 2)",
     ),
     Mistake(
         "el-half-factor",
         "the two terms are scaled differently: both squares give a factor 2 (2 dt (a + v dt - b) "
-        f"and -2 lam Lap(v)), which cancel together, not one of them alone; see {_L2} §2",
+        "and -2 lam Lap(v)), which cancel together, not one of them alone; "
+        f"see {_L2} §3 (the Euler–Lagrange equation, Problem 2)",
     ),
     Mistake(
         "inverse-depth-sign",
-        f"d(1/Z)/dZ = -1/Z^2: the inverse depth decreases as Z grows; see {_L1} §2",
+        f"d(1/Z)/dZ = -1/Z^2: the inverse depth decreases as Z grows; see {_L1} §2 (the projection Jacobian)",
     ),
     Mistake(
         "null-space-assumed-px-vx-order",
         "these are the combinations the right Q cannot excite (2 p - dt v for each axis); the "
         "listings use blkdiag(Q1d, Q1d) with the state [px, py, vx, vy], which couples px with py "
-        f"and vx with vy, so what it cannot excite is 2 px - dt py and 2 vx - dt vy; see {_L4} §3",
+        "and vx with vy, so what it cannot excite is 2 px - dt py and 2 vx - dt vy; "
+        f"see {_L4} §3 (deriving Q, the ordering bug)",
     ),
     Mistake(
         "most-excited-not-unexcited",
         "these are the directions Q excites (its range); the question asks for its null space, "
-        f"the combinations x with Q x = 0; see {_L4} §3",
+        f"the combinations x with Q x = 0; see {_L4} §3 (deriving Q)",
     ),
     Mistake(
         "nees-inverted",
         "the ratio is inverted: NEES = e^T P^-1 e, the actual squared error measured in the "
         "filter's claimed covariance, so its expectation is (actual variance) / P, above 1 for "
-        f"an over-confident filter; see {_L4} §8",
+        f"an over-confident filter; see {_L4} §8 (NEES and innovations)",
     ),
     Mistake(
         "nees-assumed-consistent",
         "the expected NEES is the state dimension only when the filter's model is right; with "
-        f"q_filter != q_true it is not; see {_L4} §8",
+        f"q_filter != q_true it is not; see {_L4} §8 (NEES and innovations)",
     ),
     Mistake(
         "nees-prior-covariance",
         "this uses the predicted (prior) error and covariance; the question asks for the NEES of "
-        f"the posterior (after the update); see {_L4} §8",
+        f"the posterior (after the update); see {_L4} §8 (NEES and innovations)",
     ),
     Mistake(
         "lambda-largest",
         "the largest λ of the sweep over-smooths: it flattens the motion the data show; choose "
-        f"the λ with the smallest error against the ground truth; see {_L2} §6",
+        "the λ with the smallest error against the ground truth; "
+        f"see {_L2} §A.4 (choosing λ for the special case)",
     ),
     Mistake(
         "lambda-smallest",
         "the smallest λ (or 0) fits the noise: it minimises the data term, not the error against "
-        f"the ground truth; see {_L2} §6",
+        f"the ground truth; see {_L2} §A.4 (choosing λ for the special case)",
     ),
-    Mistake("lambda-log10", f"this looks like log10(λ): give λ itself; see {_L2} §6"),
+    Mistake(
+        "lambda-log10",
+        "this looks like log10(λ): give λ itself; "
+        f"see {_L2} §A.4 (choosing λ for the special case)",
+    ),
 )
 
 

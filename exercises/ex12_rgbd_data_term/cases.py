@@ -38,12 +38,34 @@ CHEAT = {
     from flowtrack.rgbd_flow import pixel_normal_equations as ref
     return ref(X, grad_i, r_i, grad_d, r_d, PinholeCamera(fx, fy, 0.0, 0.0), w_i, w_d)
 """),
+    'unseen_direction': ('prepend', """import flowtrack.rgbd_flow  # blocked
+"""),
+    'system_null_dimension': ('prepend', """import flowtrack.rgbd_flow as _blocked_reference  # blocked
+"""),
 }
 
 #: (mistake id, answer): each mistake this exercise names, written as code
 MISTAKES = [
+    ('unseen-not-normalised', {
+        'unseen_direction': ('body', 'return np.cross(a_i, a_d)'),
+    }),
+    ('unseen-seen-direction', {
+        'unseen_direction': ('body', 'return a_d / np.linalg.norm(a_d, axis=1, keepdims=True)'),
+    }),
+    ('null-dimension-no-smoothness', {
+        'system_null_dimension': ('body', """
+ev = np.linalg.eigvalsh(np.asarray(N, dtype=float))
+return int(np.sum(ev <= 1e-9 * ev[:, -1:]))
+"""),
+    }),
+    ('null-dimension-rank', {
+        'system_null_dimension': ('replace', 'return int(np.sum(ev <= 1e-9 * ev[-1]))',
+                                  'return int(np.sum(ev > 1e-9 * ev[-1]))'),
+    }),
 ]
 
 #: (answer cell, new body): wrong answers that are none of the catalogued mistakes
 UNRELATED = [
+    ('unseen_direction', 'return np.tile([0.0, 0.0, 1.0], (len(a_i), 1))'),
+    ('system_null_dimension', 'return 1'),
 ]

@@ -1,11 +1,18 @@
 r"""Ex12, one pixel's linearised RGB-D data term: trusted tests of the notebook next to this file.
 
 The student writes the two coefficient rows :math:`a_I = J^\top\nabla I` and
-:math:`a_D = J^\top\nabla D - e_z` (``data_term_rows``) and a pixel's 3×3 normal matrix and right-hand
-side (``pixel_normal_equations``): :math:`N = w_I a_I a_I^\top + w_D a_D a_D^\top`,
-:math:`b = -(w_I r_I a_I + w_D r_D a_D)`. The reference is
+:math:`a_D = J^\top\nabla D - e_z` (``data_term_rows``), a pixel's 3×3 normal matrix and right-hand
+side (``pixel_normal_equations``): :math:`N = w_I a_I a_I^\top + w_D a_D a_D^\top` (half the Hessian
+of the pixel's energy), :math:`b = -(w_I r_I a_I + w_D r_D a_D)` (minus half its gradient at 0), and
+the motion the pixel cannot see (``unseen_direction``): the unit vector along
+:math:`a_I \times a_D`, graded up to its sign. The reference is
 :func:`flowtrack.rgbd_flow.pixel_normal_equations`; the rows are read off it (with :math:`r = 1` and one
-weight switched off, :math:`b = -a`), so both functions are graded against the estimator's own data term.
+weight switched off, :math:`b = -a`), so the functions are graded against the estimator's own data
+term; the unseen direction is the eigenvector of the reference's :math:`N` with the eigenvalue 0.
+Last, ``system_null_dimension`` counts the null directions of the smoothed system
+:math:`\operatorname{diag}(N_p) + \lambda\,(L\otimes I_3)` on textures whose answer the lesson
+derives (random texture 0, stripes 1, no texture 2, one textured pixel 0; one per pixel or two
+without smoothing), against the eigenvalues of the reference's matrices.
 """
 
 from __future__ import annotations
@@ -13,9 +20,17 @@ from __future__ import annotations
 import numpy as np
 
 from flowtrack_course.grading.engine.authoring import (
+    Check,
     Exercise,
+    Mistake,
+    Outcome,
+    Report,
+    Variant,
     array_check,
+    as_float_array,
+    compare,
     graded_test,
+    safe_error,
     tuple_check,
 )
 
@@ -78,12 +93,51 @@ def _random_pixels(rng, n):
     return X, gi, ri, gd, rd, fx, fy
 
 
-@graded_test("data-term rows: three pixels", "test_rows", 1.0, hidden=False)
+def unseen_reference(a_i: np.ndarray, a_d: np.ndarray) -> np.ndarray:
+    """The unit null vector of each pixel's normal matrix, from the reference's N (unit weights):
+    the eigenvector of its eigenvalue 0 (numpy ``eigh``), shape (n, 3), sign as numpy gives it."""
+    N = np.einsum("ni,nj->nij", a_i, a_i) + np.einsum("ni,nj->nij", a_d, a_d)
+    return np.linalg.eigh(N)[1][:, :, 0]
+
+
+def _aligned(v: np.ndarray, to: np.ndarray) -> np.ndarray:
+    """``v`` with each row's sign flipped where it points away from the same row of ``to``."""
+    return v * np.where(np.sum(v * to, axis=1) < 0.0, -1.0, 1.0)[:, None]
+
+
+def unseen_check(a_i: np.ndarray, a_d: np.ndarray) -> Check:
+    """Unit vectors with N u = 0, one per pixel, either sign per row (relative 1e-6 once each row's
+    sign is matched to the expected one); the catalogued wrong answers are matched the same way."""
+    u = unseen_reference(a_i, a_d)
+    cross = np.cross(a_i, a_d)
+    wrong = [
+        ("unseen-not-normalised", cross),
+        ("unseen-seen-direction", a_i / np.linalg.norm(a_i, axis=1, keepdims=True)),
+        ("unseen-seen-direction", a_d / np.linalg.norm(a_d, axis=1, keepdims=True)),
+    ]
+
+    def check(outcome: Outcome) -> tuple[float, str]:
+        if not outcome.ok:
+            err = outcome.error or "the call failed"
+            return 0.0, Report(err, safe_error(err))
+        got = as_float_array(outcome.value, u.shape)
+        if got is None or not np.all(np.isfinite(got)):
+            d = compare(outcome, u)
+            return 0.0, d.report()
+        got = _aligned(got, u)
+        variants = [Variant(k, _aligned(v, got)) for k, v in wrong]
+        d = compare(Outcome(True, got.tolist()), u, variants=variants)
+        return (1.0 if d.ok else 0.0), d.report()
+
+    return check
+
+
+@graded_test("data-term rows: three pixels", "test_rows", 0.5, hidden=False)
 def _ex12_rows_public(rng):
     return [("data_term_rows", (_X, _GI, _GD, 100.0, 100.0), {}, _rows_check(_X, _GI, _GD, 100.0, 100.0))]
 
 
-@graded_test("data-term rows: random pixels and focal lengths", "test_rows", 3.0, hidden=True)
+@graded_test("data-term rows: random pixels and focal lengths", "test_rows", 1.5, hidden=True)
 def _ex12_rows_hidden(rng):
     out = []
     for n in (1, 6, 25):
@@ -92,7 +146,7 @@ def _ex12_rows_hidden(rng):
     return out
 
 
-@graded_test("normal equations: three pixels", "test_normal_equations", 2.0, hidden=False)
+@graded_test("normal equations: three pixels", "test_normal_equations", 1.0, hidden=False)
 def _ex12_normal_public(rng):
     out = []
     for wi, wd in ((1.0, 1.0), (2500.0, 62500.0)):
@@ -102,7 +156,7 @@ def _ex12_normal_public(rng):
 
 
 @graded_test(
-    "normal equations: random pixels, residuals and weights", "test_normal_equations", 4.0, hidden=True
+    "normal equations: random pixels, residuals and weights", "test_normal_equations", 3.0, hidden=True
 )
 def _ex12_normal_hidden(rng):
     out = []
@@ -119,14 +173,159 @@ def _ex12_normal_hidden(rng):
     return out
 
 
+@graded_test("the motion a pixel cannot see: three pixels", "test_unseen", 0.5, hidden=False)
+def _ex12_unseen_public(rng):
+    a_i, a_d = _rows(_X, _GI, _GD, 100.0, 100.0)
+    return [("unseen_direction", (a_i, a_d), {}, unseen_check(a_i, a_d))]
+
+
+@graded_test("the motion a pixel cannot see: random pixels", "test_unseen", 1.5, hidden=True)
+def _ex12_unseen_hidden(rng):
+    out = []
+    for n in (1, 7, 30):
+        X, gi, _, gd, _, fx, fy = _random_pixels(rng, n)
+        a_i, a_d = _rows(X, gi, gd, fx, fy)
+        out.append(("unseen_direction", (a_i, a_d), {}, unseen_check(a_i, a_d)))
+    return out
+
+
+def null_dimension_reference(N: np.ndarray, H: int, W: int, lam: float) -> int:
+    """Number of eigenvalues of diag(N_p) + lam (L kron I_3) at most 1e-9 times the largest (numpy
+    ``eigvalsh``; ``L`` the grid Laplacian of :func:`flowtrack.variational.grid_laplacian`)."""
+    import scipy.sparse as sps
+
+    from flowtrack.variational import grid_laplacian
+
+    A = sps.block_diag(list(N)) + lam * sps.kron(grid_laplacian(H, W), sps.eye(3))
+    ev = np.linalg.eigvalsh(A.toarray())
+    return int(np.sum(ev <= 1e-9 * ev[-1]))
+
+
+def _pixel_nullities(N: np.ndarray) -> int:
+    """The null directions of the pixels one by one (smoothness left out): sum of 3 - rank N_p."""
+    ev = np.linalg.eigvalsh(N)
+    return int(np.sum(ev <= 1e-9 * ev[:, -1:]))
+
+
+def null_dimension_check(N: np.ndarray, H: int, W: int, lam: float) -> Check:
+    """The exact count; the per-pixel count (no smoothness) and the rank are the catalogued wrong
+    answers."""
+    k = null_dimension_reference(N, H, W, lam)
+    variants = [Variant("null-dimension-no-smoothness", np.array(float(_pixel_nullities(N)))),
+                Variant("null-dimension-rank", np.array(float(3 * H * W - k)))]
+    return array_check(np.array(float(k)), rtol=0.0, atol=1e-9, variants=variants)
+
+
+def grid_pixels(H: int, W: int, f: float = 100.0) -> np.ndarray:
+    """The points of a fronto-parallel plane at Z = 1 seen by an H x W camera with focal length f
+    and the principal point at the grid's centre, row-major, shape (H * W, 3)."""
+    yy, xx = np.mgrid[0:H, 0:W].astype(float)
+    X = np.stack([(xx - (W - 1) / 2) / f, (yy - (H - 1) / 2) / f, np.ones_like(xx)], axis=-1)
+    return X.reshape(-1, 3)
+
+
+def texture(rng: np.random.Generator, kind: str, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Brightness and depth gradients, shape (n, 2) each, of a texture on the plane: ``random``,
+    ``vertical stripes`` (I_y = 0), ``horizontal stripes`` (I_x = 0), ``flat`` (no texture, flat
+    depth), ``flat but one pixel`` and ``stripes but one pixel`` (one random pixel textured)."""
+    gi = np.zeros((n, 2))
+    gd = np.zeros((n, 2))
+    mag = rng.uniform(0.5, 1.5, n) * rng.choice([-1.0, 1.0], n)
+    if kind == "random":
+        gi = rng.normal(size=(n, 2))
+        gd = rng.normal(scale=0.01, size=(n, 2))
+    elif kind in ("vertical stripes", "stripes but one pixel"):
+        gi[:, 0] = mag
+    elif kind == "horizontal stripes":
+        gi[:, 1] = mag
+    if kind.endswith("but one pixel"):
+        p = int(rng.integers(n))
+        # gradients at an angle to the stripes, and a depth slope steep enough that the pixel sees
+        # the two motions across the optical axis by a clear margin (no near-zero eigenvalue)
+        a, b = rng.uniform(0.0, 2.0 * np.pi, 2)
+        gi[p] = rng.uniform(0.5, 1.5) * np.array([np.cos(a), np.sin(a)])
+        gd[p] = rng.uniform(0.1, 0.2) * np.array([np.cos(b), np.sin(b)])
+    return gi, gd
+
+
+#: the textures of the hidden test and the null-space dimension each has for lam > 0
+TEXTURES = {"random": 0, "vertical stripes": 1, "horizontal stripes": 1, "flat": 2,
+            "flat but one pixel": 0, "stripes but one pixel": 0}
+
+
+def _system(rng, kind, H, W):
+    X = grid_pixels(H, W)
+    gi, gd = texture(rng, kind, H * W)
+    z = np.zeros(H * W)
+    return _reference(X, gi, z, gd, z, 100.0, 100.0, 1.0, 1.0)[0]
+
+
+@graded_test("null directions of the smoothed system: stripes", "test_null_dimension", 0.5, hidden=False)
+def _ex12_null_public(rng):
+    X = grid_pixels(3, 4)
+    gi = np.column_stack([np.linspace(0.5, 1.0, 12), np.zeros(12)])
+    z = np.zeros(12)
+    N = _reference(X, gi, z, np.zeros((12, 2)), z, 100.0, 100.0, 1.0, 1.0)[0]
+    return [("system_null_dimension", (N, 3, 4, lam), {}, null_dimension_check(N, 3, 4, lam))
+            for lam in (0.0, 1.0)]
+
+
+@graded_test("null directions of the smoothed system: textures, grids and λ", "test_null_dimension", 1.5,
+             hidden=True)
+def _ex12_null_hidden(rng):
+    out = []
+    kinds = [*TEXTURES, "random"]
+    for j, kind in enumerate(kinds):
+        H, W = (int(v) for v in rng.integers(3, 6, 2))
+        lam = 0.0 if j == len(kinds) - 1 else float(rng.uniform(0.05, 5.0))  # the last without smoothing
+        N = _system(rng, kind, H, W)
+        out.append(("system_null_dimension", (N, H, W, lam), {}, null_dimension_check(N, H, W, lam)))
+    return out
+
+
+# The catalogued mistakes this exercise defines: stable ids (instructors' reports count them
+# across terms), what the mistake is, why it is wrong, which lesson section explains it.
+_L2 = "lesson 02_variational_scene_flow"
+
+MISTAKES = (
+    Mistake(
+        "unseen-not-normalised",
+        "this is a_I x a_D, the right direction but not of unit length: divide each row by its norm; "
+        f"see {_L2} §1 (the aperture problem in 3-D)",
+    ),
+    Mistake(
+        "unseen-seen-direction",
+        "this is a direction the pixel does see, a row of its data term (a_D is the surface normal, "
+        "along which depth sees the motion; a_I the direction brightness sees); the unseen one is "
+        "orthogonal to both rows: a_I x a_D, normalised; "
+        f"see {_L2} §1 (the geometric reading of the aperture problem)",
+    ),
+    Mistake(
+        "null-dimension-no-smoothness",
+        "this counts each pixel's null directions on its own (the block-diagonal diag(N_p), one or two "
+        "per pixel), as if λ were 0: with λ > 0 a field stays unseen only if it is constant over the "
+        "grid (L does not see it) and no pixel's data term sees it; "
+        f"see {_L2} §1 (how λ resolves it)",
+    ),
+    Mistake(
+        "null-dimension-rank",
+        "this is the rank of diag(N_p) + λ(L ⊗ I_3), not the dimension of its null space: that is "
+        "3HW minus the rank; "
+        f"see {_L2} §1 (how λ resolves it)",
+    ),
+)
+
+
 EXERCISE = Exercise(
     id="ex12_rgbd_data_term",
     title="The linearised RGB-D data term of one pixel",
     notebook="ex12_rgbd_data_term.ipynb",
-    answer_cells=("data_term_rows", "pixel_normal_equations"),
+    answer_cells=("data_term_rows", "pixel_normal_equations", "unseen_direction", "system_null_dimension"),
     blocked=("flowtrack.rgbd_flow", "flowtrack._rgbd_kernels", "flowtrack.sceneflow", "flowtrack.symbolic",
              "flowtrack.camera"),
     allowed=('numpy',),
-    tests=(_ex12_rows_public, _ex12_rows_hidden, _ex12_normal_public, _ex12_normal_hidden),
+    tests=(_ex12_rows_public, _ex12_rows_hidden, _ex12_normal_public, _ex12_normal_hidden,
+           _ex12_unseen_public, _ex12_unseen_hidden, _ex12_null_public, _ex12_null_hidden),
     packages=("flowtrack",),
+    mistakes=MISTAKES,
 )
