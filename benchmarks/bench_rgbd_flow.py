@@ -516,7 +516,12 @@ def heldout_case(spec):
 
 
 def score_heldout_pair(p, cam, options=None, methods=HELDOUT_METHODS):
-    """Every method on one pair: ``{method: worst_case_flow_metrics (metres) + cpu, wall}``."""
+    """Every method on one pair: ``{method: worst_case_flow_metrics (metres) + cpu, wall, raw}``.
+
+    The metrics are against the observable ground truth (``flow3d_observable``: the rotation of a nearly
+    uniform body of revolution about its symmetry axis, which no image or depth shows, removed; see
+    ``_evalscenes``); ``raw`` holds the same metrics against the raw ground truth ``flow3d``.
+    """
     runners = dict(RUNNERS)
     if options:
         runners[OURS] = _ablation(**options)
@@ -526,8 +531,10 @@ def score_heldout_pair(p, cam, options=None, methods=HELDOUT_METHODS):
         c0, w0 = time.process_time(), time.perf_counter()
         v, _ = runners[m](*args)
         cpu, wall = time.process_time() - c0, time.perf_counter() - w0
-        met = worst_case_flow_metrics(v * p["dt"], p["flow3d"], p["labels0"], p["moving"])
-        out[m] = {**met, "cpu": cpu, "wall": wall}
+        met = worst_case_flow_metrics(v * p["dt"], p["flow3d_observable"], p["labels0"],
+                                      p["moving_observable"])
+        raw = worst_case_flow_metrics(v * p["dt"], p["flow3d"], p["labels0"], p["moving"])
+        out[m] = {**met, "cpu": cpu, "wall": wall, "raw": raw}
     return out
 
 
@@ -540,14 +547,20 @@ def aggregate(records, methods=HELDOUT_METHODS):
     rob = np.array([r["m"][ROBUST_DIS]["epe_moving_mean"] for r in records])
     ours = np.array([r["m"][OURS]["epe_moving_mean"] for r in records])
     worst = int(np.nanargmax(ours))  # our worst pair (largest mean moving EPE3D)
+    rob_raw = np.array([r["m"][ROBUST_DIS]["raw"]["epe_moving_mean"] for r in records])
+    worst_raw = int(np.nanargmax([r["m"][OURS]["raw"]["epe_moving_mean"] for r in records]))
     dis_cpu = float(np.median([r["m"][DIS]["cpu"] for r in records]))
     out = {}
     for m in methods:
         def get(k, m=m):
             return np.array([r["m"][m][k] for r in records], dtype=float)
 
+        def raw(k, m=m):
+            return np.array([r["m"][m]["raw"][k] for r in records], dtype=float)
+
         mean, out_share, inner = get("epe_moving_mean"), get("outlier_share"), get("max_interior_error")
         cpu = float(np.median(get("cpu")))
+        raw_mean, raw_out = raw("epe_moving_mean"), raw("outlier_share")
         out[m] = {
             "pairs": len(records),
             "moving": _mm(np.nanmean(mean)),
@@ -565,6 +578,14 @@ def aggregate(records, methods=HELDOUT_METHODS):
             "worst_pair": records[worst]["name"],
             "cpu": cpu,
             "cpu_ratio_dis": cpu / dis_cpu,
+            "outliers_over": int(np.sum(out_share > MAX_OUTLIER_SHARE)),
+            "interior_over": int(np.sum(inner > MAX_INTERIOR_ERROR)),
+            "raw": {"moving": _mm(np.nanmean(raw_mean)), "outliers_mean": float(np.nanmean(raw_out)),
+                    "outliers_worst": float(np.nanmax(raw_out)),
+                    "outliers_over": int(np.sum(raw_out > MAX_OUTLIER_SHARE)),
+                    "interior_worst": _mm(np.nanmax(raw("max_interior_error"))),
+                    "ratio_split": float(np.nanmean(raw_mean) / np.nanmean(rob_raw)),
+                    "ratio_worst": float(raw_mean[worst_raw] / rob_raw[worst_raw])},
         }
     return out
 
@@ -573,8 +594,9 @@ def heldout_table(split, records):
     lines = [
         "| size | method | pairs | moving EPE3D mean | median | static | gross outliers mean / worst pair "
         "| max interior error (worst pair) | ratio to robust DIS: split / our worst pair / largest "
-        "| CPU s / pair | time / DIS |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| CPU s / pair | time / DIS | raw ground truth: moving mean / outliers mean / worst / interior max "
+        "/ ratio split, worst pair |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     groups = [(SIZE_NAMES[sz], [r for r in records if r["size"] == sz]) for sz in SIZE_NAMES]
     groups.append(("both", records))
@@ -586,27 +608,40 @@ def heldout_table(split, records):
             a = agg[m]
             ratios = ("1" if m == ROBUST_DIS else
                       f"{a['ratio_split']:.2f} / {a['ratio_worst']:.2f} / {a['ratio_max']:.2f}")
+            rw = a["raw"]
+            raw_ratios = "1" if m == ROBUST_DIS else f"{rw['ratio_split']:.2f}, {rw['ratio_worst']:.2f}"
             lines.append(
                 f"| {label} | {m} | {a['pairs']} | {a['moving']:.2f} | {a['median']:.2f} | {a['static']:.2f} "
                 f"| {100 * a['outliers_mean']:.2f} % / {100 * a['outliers_worst']:.2f} % "
-                f"| {a['interior_worst']:.0f} | {ratios} | {a['cpu']:.3f} | {a['cpu_ratio_dis']:.1f} |")
+                f"| {a['interior_worst']:.0f} | {ratios} | {a['cpu']:.3f} | {a['cpu_ratio_dis']:.1f} "
+                f"| {rw['moving']:.2f} / {100 * rw['outliers_mean']:.2f} % "
+                f"/ {100 * rw['outliers_worst']:.2f} % "
+                f"/ {rw['interior_worst']:.0f} / {raw_ratios} |")
     return lines
 
 
 def heldout_bars(records):
     """``[(text, met)]``: the bars of issue 25 on ``records`` (one split)."""
-    agg = aggregate(records)[OURS]
+    both = aggregate(records)
+    agg, peer = both[OURS], both[ROBUST_DIS]
+    rw = agg["raw"]
+    n = agg["pairs"]
     bars = [
         (f"gross outliers ≤ {100 * MAX_OUTLIER_SHARE:.1f} % of the moving pixels on every pair: worst "
-         f"{100 * agg['outliers_worst']:.2f} % ({agg['outliers_worst_pair']})",
-         agg["outliers_worst"] <= MAX_OUTLIER_SHARE),
+         f"{100 * agg['outliers_worst']:.2f} % ({agg['outliers_worst_pair']}); over on "
+         f"{agg['outliers_over']} of {n} pairs (robust DIS lifting: {peer['outliers_over']}); raw ground "
+         f"truth: worst {100 * rw['outliers_worst']:.2f} %, over on {rw['outliers_over']} "
+         f"(robust DIS: {peer['raw']['outliers_over']})", agg["outliers_worst"] <= MAX_OUTLIER_SHARE),
         (f"no interior error above {_mm(MAX_INTERIOR_ERROR):.0f} mm: worst {agg['interior_worst']:.0f} mm "
-         f"({agg['interior_worst_pair']})", agg["interior_worst"] <= _mm(MAX_INTERIOR_ERROR)),
+         f"({agg['interior_worst_pair']}); over on {agg['interior_over']} of {n} pairs (robust DIS lifting: "
+         f"{peer['interior_over']}); raw: worst {rw['interior_worst']:.0f} mm",
+         agg["interior_worst"] <= _mm(MAX_INTERIOR_ERROR)),
         (f"mean moving EPE3D ≤ {MAX_RATIO_SPLIT}× robust DIS lifting over the split: "
-         f"{agg['ratio_split']:.2f}×", agg["ratio_split"] <= MAX_RATIO_SPLIT),
+         f"{agg['ratio_split']:.2f}× (raw {rw['ratio_split']:.2f}×)", agg["ratio_split"] <= MAX_RATIO_SPLIT),
         (f"≤ {MAX_RATIO_WORST}× robust DIS lifting on our worst pair ({agg['worst_pair']}): "
          f"{agg['ratio_worst']:.2f}× (largest ratio on any pair {agg['ratio_max']:.2f}×, "
-         f"{agg['ratio_max_pair']})", agg["ratio_worst"] <= MAX_RATIO_WORST),
+         f"{agg['ratio_max_pair']}; raw: {rw['ratio_worst']:.2f}× on the raw worst pair)",
+         agg["ratio_worst"] <= MAX_RATIO_WORST),
         (f"static EPE3D ≤ {MAX_STATIC_MM} mm: {agg['static']:.2f} mm", agg["static"] <= MAX_STATIC_MM),
     ]
     for size, limit in MAX_SECONDS.items():
@@ -644,11 +679,14 @@ def _pair_record(spec, p, res):
 def write_pairs_csv(path, recs_by_split):
     cols = ["epe_moving_mean", "epe_moving_median", "epe_static_mean", "outlier_share", "max_interior_error",
             "n_moving", "cpu"]
-    lines = ["split,seed,size,motion,brightness,max_px,gain,method," + ",".join(cols)]
+    raw_cols = ["epe_moving_mean", "outlier_share", "max_interior_error"]
+    lines = ["split,seed,size,motion,brightness,max_px,gain,method," + ",".join(cols) + ","
+             + ",".join(f"raw_{c}" for c in raw_cols)]
     for split, recs in recs_by_split.items():
         for r in recs:
             for m in HELDOUT_METHODS:
-                vals = ",".join(f"{r['m'][m][c]:.6g}" for c in cols)
+                vals = ",".join([f"{r['m'][m][c]:.6g}" for c in cols] + [f"{r['m'][m]['raw'][c]:.6g}"
+                                                                          for c in raw_cols])
                 lines.append(f"{split},{r['seed']},{r['size'][1]}x{r['size'][0]},{r['motion']},{r['brightness']},"
                              f"{r['max_px']:.2f},{r['gain']:.4f},{m},{vals}")
     Path(path).write_text("\n".join(lines) + "\n")
@@ -668,7 +706,8 @@ def flow_gallery(spec, path, options=None):
     res = score_heldout_pair(p, cam, options, (OURS, ROBUST_DIS))
     runners = {OURS: _ablation(**options) if options else ours, ROBUST_DIS: robust_dis}
     args = (p["rgb0"], p["depth0"], p["rgb1"], p["depth1"], cam, p["dt"])
-    err = {m: 1000.0 * flow_end_point_errors(runners[m](*args)[0] * p["dt"], p["flow3d"]) for m in runners}
+    err = {m: 1000.0 * flow_end_point_errors(runners[m](*args)[0] * p["dt"], p["flow3d_observable"])
+           for m in runners}
     lab = p["labels0"]
     edge = np.zeros(lab.shape, bool)
     edge[1:] |= lab[1:] != lab[:-1]
@@ -691,8 +730,8 @@ def flow_gallery(spec, path, options=None):
                      f"outliers {100 * r['outlier_share']:.1f} %, interior max "
                      f"{_mm(r['max_interior_error']):.0f}", fontsize=9)
     fig.colorbar(im, ax=axes[1, :2], shrink=0.9, label="EPE3D (mm per frame)")
-    gross = np.isfinite(err[OURS]) & p["moving"] & (err[OURS] > 10.0) & (
-        err[OURS] > 500.0 * np.linalg.norm(np.nan_to_num(p["flow3d"]), axis=-1))
+    gross = np.isfinite(err[OURS]) & p["moving_observable"] & (err[OURS] > 10.0) & (
+        err[OURS] > 500.0 * np.linalg.norm(np.nan_to_num(p["flow3d_observable"]), axis=-1))
     axes[1, 2].imshow(np.linalg.norm(p["flow2d"], axis=-1) * (lab > 0), cmap="Blues")
     yy, xx = np.nonzero(gross)
     axes[1, 2].plot(xx, yy, ",", color="red")
@@ -745,6 +784,17 @@ def heldout_section(args) -> bool:
              "split, on our worst pair (the pair where flowtrack's mean moving EPE3D is largest), and the "
              "largest ratio on any pair; the median CPU time per pair (`time.process_time`, one thread) and "
              "its ratio to DIS medium + lifting's in the same run.",
+             "",
+             "**Ground truth: the observable motion.** A nearly uniform sphere, cylinder or rod (colour "
+             "within ±3 %, a few grey levels, about the camera noise) that turns about its symmetry axis "
+             "looks the same before and after in depth and, up to that faint texture, in colour: from two "
+             "frames that rotation is practically unmeasurable by any method. "
+             "As KITTI and Sintel leave unmeasurable flow out of the score, every method here is scored "
+             "against the observable motion (`flow3d_observable` of `_evalscenes.make_pair`: on those "
+             "bodies only, the rotation about the symmetry axis is removed; a sphere moves with its centre, "
+             "a cylinder by the smallest rotation that carries its axis, plus the centre's translation); "
+             "nothing else is changed (weakly textured boxes and plates keep their true motion). The last "
+             "column and the bars repeat the scores against the raw ground truth (`flow3d`).",
              ""]
     ok = True
     for split in splits:

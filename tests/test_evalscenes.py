@@ -177,3 +177,61 @@ def test_sequence_objects_never_move_faster_than_their_class_allows():
         assert 2 <= len(scene.objects) <= 6
         for ob in scene.objects:
             assert E.fastest_pixel(ob, scene.K, spec.size, times) <= hi + 1e-6
+
+
+def _ob(shape, amp):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(shape=shape, texture=SimpleNamespace(amp=amp))
+
+
+def _axis_angle(R):
+    from scipy.spatial.transform import Rotation
+
+    rv = Rotation.from_matrix(R).as_rotvec()
+    a = float(np.linalg.norm(rv))
+    return (rv / a if a > 0 else rv), a
+
+
+def test_observable_rotation_removes_only_the_twist_of_uniform_bodies_of_revolution():
+    # rotations from scipy (independent of the generator's Rodrigues formula)
+    from scipy.spatial.transform import Rotation
+
+    R0, R1 = Rotation.random(2, random_state=4).as_matrix()
+    R = R1 @ R0.T
+    # textured bodies and bodies without symmetry keep the whole rotation
+    for ob in (_ob("cylinder", 0.5), _ob("box", 0.01), _ob("plate", 0.01)):
+        R_obs, rec = E.observable_rotation(ob, R0, R1)
+        assert np.allclose(R_obs, R, atol=1e-12) and rec["twist"] == 0.0
+    # a uniform sphere: no rotation is observable, the whole angle is removed
+    R_obs, rec = E.observable_rotation(_ob("sphere", 0.01), R0, R1)
+    assert np.allclose(R_obs, np.eye(3)) and np.isclose(rec["twist"], _axis_angle(R)[1])
+    # a uniform cylinder: the swing carries the axis R0 e_z onto R1 e_z, turning about an axis normal to
+    # both by the angle between them; what is left (R_obs^T R) turns about the old axis only
+    a0, a1 = R0[:, 2], R1[:, 2]
+    for shape in ("cylinder", "rod"):
+        R_obs, rec = E.observable_rotation(_ob(shape, 0.02), R0, R1)
+        assert np.allclose(R_obs @ a0, a1, atol=1e-9)
+        axis, angle = _axis_angle(R_obs)
+        assert abs(axis @ a0) < 1e-9 and abs(axis @ a1) < 1e-9
+        assert np.isclose(angle, np.arccos(np.clip(a0 @ a1, -1, 1)), atol=1e-9)
+        rest_axis, rest_angle = _axis_angle(R_obs.T @ R)
+        assert np.isclose(abs(rest_axis @ a0), 1.0, atol=1e-9) and np.isclose(rec["twist"], rest_angle)
+    # a pure twist about the axis is removed entirely
+    twist = Rotation.from_rotvec(0.3 * a0).as_matrix()
+    R_obs, rec = E.observable_rotation(_ob("cylinder", 0.01), R0, twist @ R0)
+    assert np.allclose(R_obs, np.eye(3), atol=1e-12) and np.isclose(rec["twist"], 0.3)
+
+
+def test_observable_ground_truth_differs_only_on_uniform_bodies_of_revolution(pair):
+    # on any pair: equal to the raw truth outside the objects whose twist was removed, and on those the
+    # moved points still lie on the body (distance to the centre unchanged for a sphere)
+    raw, obs, lab = pair["flow3d"], pair["flow3d_observable"], pair["labels0"]
+    ok = np.isfinite(raw).all(-1)
+    assert np.array_equal(np.isfinite(obs).all(-1), ok)
+    changed = {k for k, rec in pair["observability"].items() if rec["twist"] > 0}
+    same = ok & ~np.isin(lab, list(changed))
+    assert np.allclose(obs[same], raw[same], atol=1e-12)
+    for rec in pair["observability"].values():
+        assert rec["twist"] == 0.0 or (rec["uniform"] and rec["symmetry"] in ("point", "axis"))
+    assert not (pair["moving_observable"] & ~pair["moving"]).any()
