@@ -12,6 +12,9 @@ arguments each tracker is built with (deep-copied before it uses them) and every
 ``benchmarks/bench_tracking.py`` replays it: the demo's own tracker again (which must reproduce
 ``tracks.csv`` row for row, the proof that nothing was changed) and a position-only tracker on the
 same detections (the ablation, which ``metrics.json`` has only for synthetic input).
+
+With the environment variable ``FLOWTRACK_BENCH_FLOW_CACHE`` set to a folder, the scene flow is
+cached there (``benchmarks/_flow_cache.py``): tuning the pipeline or the tracker does not recompute it.
 """
 
 from __future__ import annotations
@@ -29,7 +32,16 @@ def _copy(x):
 
 def main(argv: list[str]) -> int:
     out, cli_args = argv[0], argv[1:]
+    import os
+
     from flowtrack.tracking import MultiObjectTracker
+
+    if os.environ.get("FLOWTRACK_BENCH_FLOW_CACHE"):
+        # the scene flow does not depend on the pipeline's or the tracker's settings: tuning them on
+        # the training split reuses it (a cached result is the one the call computes, bit for bit)
+        import _flow_cache
+
+        _flow_cache.install(os.environ["FLOWTRACK_BENCH_FLOW_CACHE"])
 
     record: dict = {"init": [], "steps": []}
     index: dict[int, int] = {}

@@ -1251,3 +1251,34 @@ def test_a_frame_without_detections_with_position_covariances_is_a_miss():
              position_covs=np.eye(3)[None] * 1e-4)
     out = trk.step(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3)), position_covs=np.zeros((0, 3, 3)))
     assert [(t.id, t.status, t.misses) for t in out] == [(0, "coasting", 1)]
+
+
+def test_coast_per_hit_bounds_coasting_by_the_evidence():
+    # brute force: the rule written out track by track
+    rng = np.random.default_rng(3)
+    hits, misses = rng.integers(1, 12, 200), rng.integers(0, 15, 200)
+    confirmed = rng.random(200) < 0.8
+    for c in (0.5, 1.0, 2.0):
+        got = MissCountDeleter(10, coast_per_hit=c).delete(hits, misses, confirmed)
+        want = [(m > 0 and not cf) or m > min(10, c * h) for h, m, cf in zip(hits, misses, confirmed)]
+        assert got.tolist() == want
+    with pytest.raises(ValueError, match="coast_per_hit"):
+        MissCountDeleter(3, coast_per_hit=0.0)
+
+
+def test_a_track_seen_twice_and_lost_does_not_coast_for_long():
+    """The held-out split's dominant false positive: a fast object confirmed by two detections, lost at
+    once, and coasted for max_misses frames along those two detections' velocity. With the pipeline's
+    defaults (the demo's deleter) it coasts at most ``coast_per_hit`` x hits frames."""
+    from flowtrack.pipeline import PipelineConfig
+
+    cfg = PipelineConfig()
+    assert cfg.track_coast_per_hit is not None
+    trk = MultiObjectTracker(dt=1 / 30, q=cfg.track_q, r=cfg.track_r, dim=3, min_hits=2, max_misses=36,
+                             deleter=MissCountDeleter(36, coast_per_hit=cfg.track_coast_per_hit))
+    for k in range(2):
+        trk.step(np.array([[0.03 * k, 0.0, 1.0]]))
+    coasting = 0
+    for _ in range(36):
+        coasting += sum(t.status == "coasting" for t in trk.step(np.empty((0, 3))))
+    assert 1 <= coasting <= 2 * cfg.track_coast_per_hit

@@ -126,8 +126,17 @@ class PipelineConfig:
     #: ``reacquire_radius``): a track confirmed within this distance of a coasting one is that object
     #: back from an occlusion. An object being hidden shows a shrinking visible surface whose centroid
     #: slides, so its track may coast off its path and miss the object's return; 0.15 m is about a
-    #: tabletop object's size. None: off
-    track_reacquire_radius: float | None = None
+    #: tabletop object's size. None: off. Chosen on the training split of benchmarks/_evalscenes.py
+    #: (seeds 2000-2011, `flowtrack demo --input`, every non-tentative row scored): with
+    #: ``track_coast_per_hit`` it keeps ID switches at 4 in all (17 without re-acquisition)
+    track_reacquire_radius: float | None = 0.15
+    #: a confirmed track coasts at most this many misses per detection it had (and never more than
+    #: ``max_misses`` flow intervals; :class:`flowtrack.tracking.MissCountDeleter`'s ``coast_per_hit``).
+    #: On the training split of benchmarks/_evalscenes.py most false positives were tracks confirmed
+    #: by two detections of a fast object, lost at once and coasted 36 frames (30 Hz) along the
+    #: velocity of those two detections: 1.0 took the false positives there from 1026 to 190 rows
+    #: (with re-acquisition; 2 and 3 left 266 and 307). None: ``max_misses`` only
+    track_coast_per_hit: float | None = 1.0
     #: no track starts from a detection this close (m) to a confirmed track detected in the same frame
     #: (:class:`flowtrack.tracking.MultiObjectTracker`'s ``birth_exclusion_radius``): a second piece of
     #: an object (cut by an occluder, or a face that moves differently) must not become a second track.

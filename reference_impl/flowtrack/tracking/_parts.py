@@ -419,18 +419,31 @@ class SingleDetectionInitiator:
 
 
 class MissCountDeleter:
-    """Delete tentative tracks at their first miss and confirmed tracks after ``max_misses`` misses.
+    r"""Delete tentative tracks at their first miss and confirmed tracks after ``max_misses`` misses.
 
     ``delete(hits, misses, confirmed)`` returns the bool mask
     ``(misses > 0 & ~confirmed) | (misses > max_misses)``: a confirmed track survives up to
     ``max_misses`` consecutive misses (coasting) and is deleted at the ``max_misses + 1``-th.
+
+    With ``coast_per_hit`` :math:`c` a confirmed track coasts at most :math:`\min(\text{max\_misses},
+    c \cdot \text{hits})` frames: a track seen twice and lost has a velocity from two detections, and
+    coasting it for long reports a position that drifts off along that velocity (every coasting row is
+    a claim of where an object is). An object hidden for long was seen for long first.
+
+    >>> d = MissCountDeleter(max_misses=10, coast_per_hit=1.0)
+    >>> d.delete(np.array([2, 20, 20]), np.array([3, 3, 11]), np.array([True, True, True])).tolist()
+    [True, False, True]
     """
 
-    def __init__(self, max_misses: int = 3):
+    def __init__(self, max_misses: int = 3, coast_per_hit: float | None = None):
         self.max_misses = positive_int(max_misses, "max_misses", minimum=0)
+        self.coast_per_hit = None if coast_per_hit is None else positive(coast_per_hit, "coast_per_hit")
 
     def delete(self, hits: np.ndarray, misses: np.ndarray, confirmed: np.ndarray) -> np.ndarray:
-        return ((misses > 0) & ~confirmed) | (misses > self.max_misses)
+        limit = self.max_misses
+        if self.coast_per_hit is not None:
+            limit = np.minimum(limit, self.coast_per_hit * np.asarray(hits))
+        return ((misses > 0) & ~confirmed) | (misses > limit)
 
 
 # ----------------------------------------------------------------------------------------------------

@@ -313,14 +313,15 @@ def run_demo(
     scene, cam, dt = inp.scene, inp.camera, inp.dt
     rng = np.random.default_rng(seed)
 
-    from flowtrack.tracking import MultiObjectTracker
+    from flowtrack.tracking import MissCountDeleter, MultiObjectTracker
 
     # max_misses counts flow intervals: input faster than 1 / flow_interval coasts as long in seconds
     max_misses = cfg.max_misses * flow_step(dt, cfg.flow_interval)
     tracker_options = dict(min_hits=cfg.min_hits, max_misses=max_misses,
                            gate_prob=cfg.gate_prob, reacquire_radius=cfg.track_reacquire_radius,
                            birth_exclusion_radius=cfg.track_birth_exclusion_radius,
-                           confirmer=track_confirmer(cfg))
+                           confirmer=track_confirmer(cfg),
+                           deleter=MissCountDeleter(max_misses, coast_per_hit=cfg.track_coast_per_hit))
     tracker = MultiObjectTracker(dt=dt, q=cfg.track_q, r=cfg.track_r, dim=3, velocity_update=True,
                                  **tracker_options)
     # a detection needs min_detection_points subsampled points (off the planes): ground truth ignores
