@@ -135,3 +135,23 @@ def test_pairs_given_as_column_row_fail_a_public_test():
     C = np.array([[9.0, 2.0, 6.0], [5.0, 9.0, 1.0], [3.0, 7.0, 9.0]])
     _, report = module.assignment_check(C)(Outcome(True, [[1, 0], [2, 1], [0, 2]]))
     assert report.safe == "a valid assignment but not a minimal one (its total exceeds the minimum)"
+
+
+@pytest.mark.parametrize("source, kind", [("def def f(dt):\n    return dt\n", "SyntaxError"),
+                                          ("def f(dt):\nreturn dt\n", "IndentationError")])
+def test_a_cell_that_does_not_compile_is_reported_on_one_readable_line(source, kind):
+    """The child's text of a syntax error (as it really formats it) reads as the error, where it
+    is and the offending line, with no escaped newlines in between."""
+    from flowtrack_course.grading.engine.feedback import cell_problems
+    from grading_sandbox.errors import exception_text
+
+    try:
+        compile(source, "<cell f>", "exec")
+    except SyntaxError as exc:
+        text = exception_text(exc, cell=True)
+    else:
+        raise AssertionError("the source compiled")
+    (line,) = cell_problems({"f": text}, ["f"])
+    assert "\\n" not in line and line.startswith(f"cell 'f' failed to run: {kind}: "), line
+    assert "(at <cell f> line " in line
+    assert ("def def f(dt):" if kind == "SyntaxError" else "return dt") in line

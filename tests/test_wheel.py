@@ -19,7 +19,6 @@ Octave is a Debian package (``make test`` installs it); without it the test fail
 
 from __future__ import annotations
 
-import os
 import shutil
 import site
 import subprocess
@@ -29,38 +28,24 @@ from pathlib import Path
 
 import pytest
 
+from wheel_helpers import build_wheel, clean_env, run
+
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("wheel")]
-
-
-def _run(cmd, cwd, env, timeout=900):
-    proc = subprocess.run([str(c) for c in cmd], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout)
-    assert proc.returncode == 0, (
-        f"{cmd} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    )
-    return proc.stdout
 
 
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory):
     """(venv folder, environment without FLOWTRACK_COURSE) with the wheel installed."""
     tmp = tmp_path_factory.mktemp("wheel")
-    src = tmp / "src"  # a copy: building in the checkout would leave build/ and egg-info there
-    src.mkdir()
-    for name in ("pyproject.toml", "README.md"):
-        shutil.copy(ROOT / name, src / name)
-    shutil.copytree(ROOT / "reference_impl", src / "reference_impl",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info"))
-    env = {k: v for k, v in os.environ.items() if k not in ("FLOWTRACK_COURSE", "PYTHONPATH")}
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp / "dist", src], tmp, env)
-    (wheel,) = (tmp / "dist").glob("flowtrack-*.whl")
+    env = clean_env()
+    wheel = build_wheel(tmp, env)
     venv = tmp / "venv"
-    _run([sys.executable, "-m", "venv", venv], tmp, env)  # no --system-site-packages
+    run([sys.executable, "-m", "venv", venv], tmp, env)  # no --system-site-packages
     py = venv / "bin" / "python"
-    _run([py, "-m", "pip", "install", "-q", "--no-deps", "--no-index", wheel], tmp, env)
+    run([py, "-m", "pip", "install", "-q", "--no-deps", "--no-index", wheel], tmp, env)
     purelib = "import sysconfig; print(sysconfig.get_path('purelib'))"
-    fresh_site = Path(_run([py, "-c", purelib], tmp, env).strip())
+    fresh_site = Path(run([py, "-c", purelib], tmp, env).strip())
     ours = [p for p in site.getsitepackages() if Path(p).is_dir()] or [sysconfig.get_path("purelib")]
     (fresh_site / "zz_flowtrack_test_deps.pth").write_text("".join(p + "\n" for p in ours))
     return venv, env
@@ -70,7 +55,7 @@ def test_the_wheel_is_what_the_fresh_environment_imports(installed, tmp_path):
     venv, env = installed
     code = ("import flowtrack, flowtrack_course.grading.engine.run as g, grading_sandbox as s; "
             "print(flowtrack.__file__); print(g.__file__); print(s.__file__)")
-    out = _run([venv / "bin" / "python", "-c", code], tmp_path, env)
+    out = run([venv / "bin" / "python", "-c", code], tmp_path, env)
     for line in out.split():
         assert Path(line).is_relative_to(venv), f"{line} is not the installed wheel's"
         assert not Path(line).is_relative_to(ROOT)
@@ -82,7 +67,7 @@ def test_release_from_another_folder_with_course(installed, tmp_path):
     venv, env = installed
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    out = _run([venv / "bin" / "flowtrack", "release", "--course", ROOT, "--out", tmp_path / "bundle"],
+    out = run([venv / "bin" / "flowtrack", "release", "--course", ROOT, "--out", tmp_path / "bundle"],
                elsewhere, env)
     assert "wrote" in out
     assert sorted(p.name for p in (tmp_path / "bundle" / "exercises").glob("*.ipynb")) == sorted(
@@ -108,7 +93,7 @@ def test_octave_port_from_another_folder_with_course(installed, tmp_path):
     venv, env = installed
     if shutil.which("octave") is None:
         pytest.fail("octave is missing: apt-get install octave (make test installs it)")
-    out = _run([venv / "bin" / "flowtrack", "ports", "--lang", "octave", "--course", ROOT, "--build-dir",
+    out = run([venv / "bin" / "flowtrack", "ports", "--lang", "octave", "--course", ROOT, "--build-dir",
                 tmp_path / "build", "--no-progress"], tmp_path, env)
     assert "octave" in out and " 0 failed" in out, out
 
@@ -119,18 +104,18 @@ def test_check_grade_and_gradescope_from_another_folder_with_course(installed, t
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     solution = ROOT / "exercises" / "ex05_cv_model" / "ex05_cv_model.ipynb"
-    out = _run([flowtrack, "check", "--course", ROOT, solution], elsewhere, env)
+    out = run([flowtrack, "check", "--course", ROOT, solution], elsewhere, env)
     assert "public score: 3 / 3" in out
     subs = tmp_path / "subs"
     (subs / "ana").mkdir(parents=True)
     shutil.copy(solution, subs / "ana" / solution.name)
-    out = _run([flowtrack, "grade", "--course", ROOT, subs, "--out", tmp_path / "graded", "--no-progress"],
+    out = run([flowtrack, "grade", "--course", ROOT, subs, "--out", tmp_path / "graded", "--no-progress"],
                elsewhere, env)
     assert "graded 1 students" in out
     table = (tmp_path / "graded" / "grades.csv").read_text().splitlines()
     header, row = table[0].split(","), dict(zip(table[0].split(","), table[1].split(",")))
     assert header[0] == "student" and "ex05_cv_model" in header and float(row["ex05_cv_model"]) == 10.0
-    _run([flowtrack, "gradescope", "--course", ROOT, "--out", tmp_path / "ag.zip", "--exercises", "ex05"],
+    run([flowtrack, "gradescope", "--course", ROOT, "--out", tmp_path / "ag.zip", "--exercises", "ex05"],
          elsewhere, env)
     assert (tmp_path / "ag.zip").is_file()
     import zipfile

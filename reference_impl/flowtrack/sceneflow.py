@@ -505,7 +505,13 @@ def _check_rigid(T, name: str) -> np.ndarray:
 
 
 def _o3d():
-    import open3d as o3d
+    try:
+        import open3d as o3d
+    except ImportError as exc:  # the student install leaves open3d out: say what to install
+        raise ImportError(
+            "rigid (ICP) scene flow needs open3d, which this install does not have: "
+            "python -m pip install open3d (or install flowtrack with the 'pipeline' extra)"
+        ) from exc
 
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     return o3d

@@ -223,10 +223,20 @@ def prune_stale(kind_dir: Path, keep: str, max_age: float = PRUNE_AFTER) -> list
 
 
 def link_or_copy(src: Path, dst: Path) -> None:
-    """Hard-link ``src`` to ``dst``, else copy it (mode 0755 if ``src`` is executable, else 0644)."""
-    try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copy2(src, dst)
-        os.chmod(dst, 0o755 if os.access(src, os.X_OK) else 0o644)
+    """Hard-link ``src`` to ``dst`` when others may read it, else copy it (mode 0755 if ``src`` is
+    executable, else 0644).
+
+    A hard link shares the file's inode and so its mode: a file made under ``umask 077`` (a virtual
+    environment created by root with a private umask) would stay unreadable to the sandbox's uid
+    through its link, so it is copied instead."""
+    mode = os.stat(src).st_mode
+    executable = bool(mode & stat.S_IXUSR)
+    if mode & stat.S_IROTH and (not executable or mode & stat.S_IXOTH):
+        try:
+            os.link(src, dst)
+            return
+        except OSError:
+            pass
+    shutil.copy2(src, dst)
+    os.chmod(dst, 0o755 if executable else 0o644)
 

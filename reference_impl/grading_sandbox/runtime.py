@@ -134,7 +134,9 @@ def mirror_site(site: Path, leave_out: Sequence[str] = ()) -> Path:
     package is added, removed or replaced. The top-level entries ``leave_out`` (the exposed
     packages, which the sandbox gets as filtered copies, and the private ones) are left out."""
     leave_out = tuple(sorted(set(leave_out)))
-    h = hashlib.sha256(f"{site.resolve()}\0{sys.version}\0{','.join(leave_out)}".encode())
+    # the format's version is in the key: mirrors made before private files were copied rather
+    # than hard-linked are not reused
+    h = hashlib.sha256(f"mirror 2\0{site.resolve()}\0{sys.version}\0{','.join(leave_out)}".encode())
     for e in sorted(os.scandir(site), key=lambda e: e.name):
         h.update(f"{e.name}\0{e.stat(follow_symlinks=False).st_mtime_ns}\n".encode())
     key = h.hexdigest()[:20]

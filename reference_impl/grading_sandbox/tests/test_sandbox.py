@@ -281,6 +281,10 @@ def test_root_with_a_private_venv_still_grades(tmp_path, monkeypatch):
     (private / "mypkg" / "__init__.py").write_text("X = 42\n")
     (private / "flowtrack").mkdir()
     (private / "flowtrack" / "secret.py").write_text("S = 1\n")
+    # made under umask 077 (as root's `python3 -m venv .venv` with a private umask): a hard link
+    # of a 0600 file would keep its mode, so the mirror must copy it
+    (private / "mypkg" / "__init__.py").chmod(0o600)
+    (private / "mypkg").chmod(0o700)
     (tmp_path / "venv").chmod(0o700)
     monkeypatch.setattr(sbmod, "site_dirs", lambda: [*real, str(private)])
     src = ("import glob\ndef f():\n    import mypkg\n"

@@ -14,7 +14,7 @@ from typing import TextIO
 
 from grading_sandbox import SandboxConfigError
 
-from ..engine.results import ExerciseResult
+from ..engine.results import ExerciseResult, format_score
 from ..engine.run import run_exercise
 from ..engine.spec import CannotGradeHere
 
@@ -32,7 +32,7 @@ def format_report(result: ExerciseResult, hidden_points: float = 0.0) -> str:
     lines.append(f"{'test'.ljust(width)}  {'points':>11}  result")
     lines.append(f"{'-' * width}  {'-' * 11}  ------")
     for t in result.tests:
-        pts = f"{t.score:g}/{t.max_score:g}"
+        pts = f"{format_score(t.score)}/{format_score(t.max_score)}"
         lines.append(f"{t.name.ljust(width)}  {pts:>11}  {'PASS' if t.passed else 'FAIL'}")
     lines.append("")
     for t in result.tests:
@@ -43,11 +43,11 @@ def format_report(result: ExerciseResult, hidden_points: float = 0.0) -> str:
         seen += [m for m in getattr(t, "mistakes", ()) if m not in seen]
     if seen:
         lines += ["", *result.catalogue.lines(seen), ""]
-    lines.append(f"public score: {result.score:g} / {result.max_score:g}")
+    lines.append(f"public score: {format_score(result.score)} / {format_score(result.max_score)}")
     if hidden_points:
         lines.append(
-            f"(hidden tests worth {hidden_points:g} more points use other inputs and are run when your "
-            "work is graded)"
+            f"(hidden tests worth {format_score(hidden_points)} more points use other inputs and are run "
+            "when your work is graded)"
         )
     return "\n".join(lines)
 

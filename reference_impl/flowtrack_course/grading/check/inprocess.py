@@ -45,6 +45,7 @@ from grading_sandbox.wire import NotPlainData, as_child_receives, plain_data
 
 from ..engine.feedback import safe_text
 from ..engine.mistakes import mistakes_of
+from ..engine.results import format_score
 from ..engine.run import catalogue_of
 from ..engine.seeds import public_seed, student_seed
 from ..engine.spec import Call, Exercise, Outcome
@@ -183,13 +184,14 @@ def run_in_process(
         lines = catalogue.lines(mistakes_of(message))
         if test.hidden:
             safe = safe_text(message) if earned < test.points else ""
-            head = f"hidden test: {earned:g}/{test.points:g}"
+            head = f"hidden test: {format_score(earned)}/{format_score(test.points)}"
             message = "\n".join([head, *([safe] if safe else []), *lines])
         elif lines:
             message = "\n".join([str(message), *lines])
         results.append((test.name, earned, float(test.points), message))
         if verbose:
-            print(f"{test.name}: {earned:g}/{test.points:g}" + ("" if test.hidden else f" - {message}"))
+            shown = "" if test.hidden else f" - {message}"
+            print(f"{test.name}: {format_score(earned)}/{format_score(test.points)}{shown}")
     return results
 
 

@@ -29,7 +29,7 @@ from flowtrack.validation import positive_int
 
 from .jobs import ClassJob, StudentJob
 from .layout import student_id_problem
-from .results import round_score, student_folder, write_atomic
+from .results import format_score, round_score, student_folder, write_atomic
 from .run import check_environment, preload_modules
 from .spec import CannotGradeHere, Exercise
 from .student import exercises_hash, grade_student
@@ -169,9 +169,9 @@ def _write_grades_csv(path: Path, rows: Iterable[dict], exercises: Sequence[Exer
         scores = row.get("exercises", {})
         mine = (assigned or {}).get(row["student"], exercises)
         ids = {ex.id for ex in mine}
-        cells = [f"{scores.get(ex.id, 0.0):g}" if ex.id in ids else "" for ex in exercises]
+        cells = [format_score(scores.get(ex.id, 0.0)) if ex.id in ids else "" for ex in exercises]
         top = round_score(sum(ex.max_score for ex in mine))
-        w.writerow([row["student"], *cells, f"{row.get('score', 0.0):g}", f"{top:g}"])
+        w.writerow([row["student"], *cells, format_score(row.get('score', 0.0)), format_score(top)])
     write_atomic(path, buf.getvalue())
 
 

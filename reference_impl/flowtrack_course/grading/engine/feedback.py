@@ -268,24 +268,35 @@ def _cause(text: str) -> str:
     The exception's whole message is kept (a multi-line message is not cut to its last line) and
     escaped onto one line: its newlines as ``\\n``, a lone surrogate as ``\\ud800``.
 
+    A syntax error (Python prints where it is, the offending line and a caret, then the error)
+    keeps the offending line, as Python shows it:
+
     >>> _cause('Traceback (most recent call last):\\n  File "<cell f>", line 2, in <module>\\n'
     ...        'ValueError: \\ud800 bad\\n<!--')
     'ValueError: \\\\ud800 bad\\\\n<!-- (at <cell f> line 2)'
+    >>> _cause('File "<cell f>", line 4\\n    def def f(dt):\\n        ^^^\\nSyntaxError: invalid syntax')
+    'SyntaxError: invalid syntax (at <cell f> line 4: def def f(dt):)'
     """
     text = str(text)
     lines = [ln for ln in text.splitlines() if ln.strip()]
-    # the exception starts after the last "  File ..." line and its indented source lines
+    # the exception starts after the last "File ..." line and its indented source lines (the
+    # child's text may have lost the first line's indentation when it was stripped)
     start = 0
     for i, ln in enumerate(lines):
-        if ln.startswith('  File "'):
+        if ln.lstrip().startswith('File "'):
             start = i + 1
+    source = []
     while start and start < len(lines) and lines[start].startswith("    "):
+        source.append(lines[start].strip())
         start += 1
     if start == 0 and lines and lines[0].startswith("Traceback"):
         start = 1
     exc = "\n".join(lines[start:]).strip() or text.strip()
     where = _LOCATION.findall(text)
-    return _one_line(exc)[:300] + (f" (at {where[-1][0]} line {where[-1][1]})" if where else "")
+    code = ""
+    if exc.startswith(("SyntaxError", "IndentationError", "TabError")) and source:
+        code = ": " + _one_line(source[0])[:120]
+    return _one_line(exc)[:300] + (f" (at {where[-1][0]} line {where[-1][1]}{code})" if where else "")
 
 
 def explain_cascade(outcomes: Sequence[Outcome], cell_errors: dict[str, str]) -> list[Outcome]:

@@ -23,7 +23,7 @@ from .feedback import feedback_lines, mistake_records
 from .mistakes import Catalogue
 
 __all__ = ["FORMAT", "ExerciseResult", "TestResult", "feedback_markdown", "read_results", "results_json",
-           "round_score", "student_folder", "write_atomic"]
+           "format_score", "round_score", "student_folder", "write_atomic"]
 
 FORMAT = "flowtrack-results/1"
 
@@ -123,6 +123,17 @@ def round_score(x: float) -> float:
     return round(float(x), 6)
 
 
+def format_score(x: float) -> str:
+    """A score as every output prints it: :func:`round_score`'s value without trailing zeros, so
+    that grades.csv, the feedback, results.json and the LMS files show the same digits.
+
+    >>> format_score(139 / 6), format_score(10.0), format_score(0.5), format_score(-1e-9)
+    ('23.166667', '10', '0.5', '0')
+    """
+    text = f"{round_score(x):.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
 def results_json(
     student: str,
     results: Sequence[ExerciseResult],
@@ -151,11 +162,11 @@ def results_json(
     tests = []
     lines = [f"note: {n}" for n in notes]
     for r in results:
-        lines.append(f"{r.exercise_id} ({r.title}): {round_score(r.score):g} / {round_score(r.max_score):g}")
+        lines.append(f"{r.exercise_id} ({r.title}): {format_score(r.score)} / {format_score(r.max_score)}")
         lines += [f"  problem: {p}" for p in r.problems]
         for t in r.tests:
             if t.hidden:
-                output = f"hidden test {t.name}: {round_score(t.score):g} / {round_score(t.max_score):g}"
+                output = f"hidden test {t.name}: {format_score(t.score)} / {format_score(t.max_score)}"
                 shown = feedback_lines(t, hidden=True, catalogue=r.catalogue)
                 output += "".join(f"\n{line}" for line in shown)
                 visibility = hidden_visibility
@@ -216,7 +227,7 @@ def feedback_markdown(student: str, r: ExerciseResult, notes: Sequence[str] = ()
         "",
         f"Student: `{student}`. Notebook: `{r.notebook}`.",
         "",
-        f"**Score: {round_score(r.score):g} / {round_score(r.max_score):g}**",
+        f"**Score: {format_score(r.score)} / {format_score(r.max_score)}**",
         "",
     ]
     if notes:  # the grader's words around file names a student chose: fenced like the problems
@@ -229,7 +240,7 @@ def feedback_markdown(student: str, r: ExerciseResult, notes: Sequence[str] = ()
     for t in r.tests:
         kind = "hidden" if t.hidden else "public"
         mark = "passed" if t.passed else "failed"
-        score = f"{round_score(t.score):g} / {round_score(t.max_score):g}"
+        score = f"{format_score(t.score)} / {format_score(t.max_score)}"
         out.append(f"| {t.name} | {kind} | {score} | {mark} |")
     ids: list[str] = []
     for t in r.tests:

@@ -45,6 +45,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from ..engine.results import format_score
+
 __all__ = [
     "RosterEntry",
     "canvas_csv",
@@ -249,7 +251,7 @@ def read_grades_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
 
 
 def _fmt(x: float | None) -> str:
-    return "" if x is None else f"{round(float(x), 6):g}"
+    return "" if x is None else format_score(x)
 
 
 def _columns(

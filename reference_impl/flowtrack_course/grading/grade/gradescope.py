@@ -158,10 +158,12 @@ def main(argv: list[str] | None = None) -> int:
     problem = _isolation_problem([p for p in protect if p.exists()], args.allow_unsafe_sandbox)
     if problem:
         return _error_result(args.results, problem)
+    from ..engine.results import format_score
+
     options = GradingOptions(secret=secret).hiding(args.submission, *protect, catalog.root)
     data = run_submission(args.submission, args.results, student=student, exercises=exercises,
                           catalog=catalog, options=options)
-    print(f"flowtrack autograder: {student}: score {data.get('score', 0):g}", file=sys.stderr)
+    print(f"flowtrack autograder: {student}: score {format_score(data.get('score', 0))}", file=sys.stderr)
     return 0
 
 
