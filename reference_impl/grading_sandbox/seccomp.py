@@ -29,8 +29,8 @@ a namespace flag, ``setns``     size); ``clone3`` answers ``ENOSYS`` (its flags 
 API (``open_tree``, ``fs*``,
 ``move_mount``, ...)
 ``setpriority``,                another process's nice value, scheduling policy, CPU affinity,
-``sched_set{scheduler,param,    I/O priority or resource limits (the zygote's, which the next
-attr,affinity}``,               child would inherit: a student could slow down or starve the
+``sched_set*`` (scheduler,      I/O priority or resource limits (the zygote's, which the next
+param, attr, affinity),         child would inherit: a student could slow down or starve the
 ``ioprio_set``, ``prlimit64``   students graded after them); the calling process's own stay allowed
 ``userfaultfd``                 pauses the kernel mid-copy: a classic exploit aid
 ``keyctl``, ``add_key``,        kernel keyrings: kernel memory per uid, kept after the process

@@ -132,7 +132,7 @@ def text_cell(text: str) -> str:
     """``text`` as a CSV cell no spreadsheet evaluates: a leading ``'`` when it starts like a formula.
 
     >>> text_cell('=HYPERLINK("http://x", "y")'), text_cell("Doe, Jane"), text_cell("")
-    ('\'=HYPERLINK("http://x", "y")', 'Doe, Jane', '')
+    ('\\'=HYPERLINK("http://x", "y")', 'Doe, Jane', '')
     """
     text = str(text)
     return "'" + text if text.startswith(_FORMULA_START) else text
