@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import shutil
+import sys
 from pathlib import Path
 
 import pytest
@@ -67,6 +68,14 @@ def test_grade_stops_before_grading_anyone_and_says_why_once(lost_libraries, tmp
     assert run.reason.count("grader configuration error") == 1 and "Fix:" in run.reason
     assert not (tmp_path / "out" / "grades.csv").exists()
     assert not list((tmp_path / "out").glob("*/results.json"))
+
+
+def test_grade_without_nbgrader_says_what_to_install_before_grading(tmp_path, monkeypatch):
+    # a student install (no `grading` extra) used to grade the whole class, then end in a traceback
+    monkeypatch.setitem(sys.modules, "nbgrader", None)
+    run = run_grade_with(_class(tmp_path, 1), tmp_path / "out", exercises=[EX])
+    assert run.status == 3 and "flowtrack[grading]" in run.reason and "nbgrader" in run.reason
+    assert not (tmp_path / "out" / "grades.csv").exists()
 
 
 class _DeadSandbox(StandInSandbox):

@@ -16,11 +16,13 @@ A run that grades no student (no student folder, or no folder holding any expect
 with exit status 2 and the reason; an error grading a student gives 1; a grader whose sandbox cannot
 import what an exercise allows (checked before any student is graded:
 :func:`~..engine.run.check_environment`), or a class whose every student failed an exercise the same
-way (:func:`~..engine.classrun.uniform_failures`), gives 3 and says so.
+way (:func:`~..engine.classrun.uniform_failures`), gives 3 and says so; so does an environment
+without nbgrader (a student install), before anyone is graded.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import sys
 from dataclasses import dataclass, field, replace
@@ -47,6 +49,13 @@ def grade_class(job: ClassJob, *, assignment: str = "flowtrack", roster: dict | 
     write_gradebook(job.out / OUTPUT_FILES["gradebook"], exercises, job.out, students, assignment=assignment,
                     roster=roster)
     return rows
+
+
+def _have_nbgrader() -> bool:
+    """Whether the gradebook's nbgrader can be imported (without importing it: that takes a second)."""
+    if "nbgrader" in sys.modules:
+        return sys.modules["nbgrader"] is not None
+    return importlib.util.find_spec("nbgrader") is not None
 
 
 @dataclass
@@ -135,6 +144,11 @@ def run_grade(
         force=job.options.force,
     )
     job = replace(job, exercises=exercises, renamed=renamed, ignored=ignored, log=log)
+    if not _have_nbgrader():  # the gradebook is written last: say so before grading anyone
+        return GradeRun(3, reason=(
+            "flowtrack grade writes an nbgrader gradebook, and nbgrader is not installed in this "
+            "environment (a student install?): python -m pip install 'flowtrack[grading]' "
+            "(graded no student: nothing was written)"))
     try:
         rows = grade_class(job, assignment=assignment, roster=roster_map)
     except (SandboxConfigError, CannotGradeHere) as exc:  # found before any student was graded
