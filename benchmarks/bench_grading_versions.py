@@ -22,7 +22,8 @@ both grade exactly the same notebooks and neither spends time on absent ones.
 
 Each version grades the same student folders with the same ``--jobs``, each run into a fresh output
 folder, interleaved old, new, new, old, old, new, ... (``--reps`` runs each), after one untimed
-warm-up run each (the old tree's byte-code and both versions' sandbox cache copies are made there).
+warm-up run each (both trees' byte-code and both versions' sandbox cache copies are made there;
+``PYTHONDONTWRITEBYTECODE`` is unset for the graders, so neither compiles its sources on every run).
 Measured per run: wall-clock seconds and CPU seconds of the grader and everything it started
 (``bench_grading.CpuMeter``: a cpuacct cgroup where the machine has one), and the 1-min load
 average before and after. Both versions' ``grades.csv`` are compared per student and exercise.
@@ -113,7 +114,11 @@ def restricted_class(dest: Path, n: int, used: list[str]) -> list[tuple[str, str
 
 
 def grader_env(tree: Path) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("FLOWTRACK_COURSE", "PYTHONPATH")}
+    """The environment of a grader run from ``tree``. Byte-code is written and reused (an installed
+    package has it): where ``PYTHONDONTWRITEBYTECODE`` is set, every run would compile the grader's
+    sources again, and the larger of the two versions would pay more for it."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("FLOWTRACK_COURSE", "PYTHONPATH", "PYTHONDONTWRITEBYTECODE")}
     env["PYTHONPATH"] = str(tree / "reference_impl")
     return env
 
@@ -143,6 +148,47 @@ def grade(tree: Path, course: Path, subs: Path, out: Path, jobs: int, log: Path)
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} exited {proc.returncode}:\n{log.read_text()[-3000:]}")
     return wall, meter.seconds, meter.how
+
+
+# A class run of the new grader starts, before its first student, one sandbox per distinct sandbox
+# configuration of the exercises (``check_environment``), to refuse a broken environment once instead
+# of scoring every student 0. It is timed alone here, since it is a fixed cost of every run.
+_PREFLIGHT = """\
+import json, sys, time
+from flowtrack_course.course import use_course
+from flowtrack_course.grading.engine import run
+from flowtrack_course.grading.sources import course_catalog
+check = getattr(run, "check_environment", None)
+if check is None:
+    print("null")
+    raise SystemExit
+exercises = course_catalog(use_course(sys.argv[1], need=("exercises",))).default()
+walls, sandboxes = [], 0
+for _ in range(int(sys.argv[2])):
+    t0 = time.perf_counter()
+    sandboxes = check(exercises)
+    walls.append(time.perf_counter() - t0)
+print(json.dumps({"sandboxes": sandboxes, "walls": walls}))
+"""
+
+
+def preflight(tree: Path, course: Path, cwd: Path, calls: int = 3) -> dict | None:
+    """The grader's check before its first student, where the version of ``tree`` has one: ``None``
+    or ``{"sandboxes": n, "wall": median s, "cpu": CPU s per call}``. CPU per call is the difference
+    between a process making ``calls`` checks and one making none (the imports cancel out)."""
+    import json
+
+    cpu, out = {}, {}
+    for k in (0, calls):
+        with CpuMeter() as meter:
+            out[k] = json.loads(subprocess.run([sys.executable, "-c", _PREFLIGHT, str(course), str(k)],
+                                               env=grader_env(tree), cwd=cwd, check=True,
+                                               capture_output=True, text=True).stdout)
+        cpu[k] = meter.seconds
+        if out[k] is None:
+            return None
+    return {"sandboxes": out[calls]["sandboxes"], "wall": statistics.median(out[calls]["walls"]),
+            "cpu": (cpu[calls] - cpu[0]) / calls}
 
 
 def read_grades(out: Path) -> dict[str, dict[str, str]]:
@@ -233,7 +279,7 @@ def main(argv=None) -> int:
         students = restricted_class(tmp / "subs", n, used)
         # the small class: the first students of the big one (same notebooks), also the warm-up's
         restricted_class(tmp / "small-subs", k or 3, used)
-        for v in ("old", "new"):  # untimed: byte-code of the old tree, sandbox cache copies
+        for v in ("old", "new"):  # untimed: byte-code of both trees, sandbox cache copies
             (tmp / f"warm-{v}").mkdir()
             grade(trees[v], courses[v], tmp / "small-subs", tmp / f"warm-{v}" / "out", args.jobs,
                   tmp / f"warm-{v}" / "log.txt")
@@ -243,6 +289,7 @@ def main(argv=None) -> int:
         load_start = os.getloadavg()[0]
         runs, how = timed_runs(order, trees, courses, classes, tmp, args.jobs)
         load_end = os.getloadavg()[0]
+        checks = {v: preflight(trees[v], courses[v], tmp) for v in trees}
 
         grades = {v: [read_grades(r["out"]) for r in runs[(v, n)]] for v in trees}
         # each version must agree with itself (hidden inputs are seeded from student and test names)
@@ -311,6 +358,12 @@ def main(argv=None) -> int:
         f"{fmt(f'{q:.3f}' for q in pair_cpu)} (min {min(pair_cpu):.3f}, max {max(pair_cpu):.3f}); wall "
         f"{fmt(f'{q:.3f}' for q in pair_wall)}. 1-min load average {load_start:.1f} before the first "
         f"timed run, {load_end:.1f} after the last.",
+        "",
+        "The check before the first student (a sandbox per distinct sandbox configuration of the "
+        "exercises, importing what they allow; timed alone after the runs, 3 calls): "
+        + "; ".join(f"{v}: none" if c is None else
+                    f"{v}: {c['sandboxes']} sandboxes, {c['cpu']:.2f} CPU s, {c['wall']:.2f} s wall"
+                    for v, c in checks.items()) + ".",
         "",
         "Scores (`grades.csv`, per student and exercise, total and max): "
         + ("the same in both versions" if not diffs
