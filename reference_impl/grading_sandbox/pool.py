@@ -24,6 +24,9 @@ class _Lease:
     def __exit__(self, *exc: object) -> None:
         self._box.finish()
 
+    def start(self, timeout: float | None = None) -> None:
+        self._box.start(timeout)
+
     def run(self, calls: Sequence[Call], timeout: float | None = None) -> list[Outcome]:
         return self._box.run(calls, timeout)
 
