@@ -265,13 +265,22 @@ def run_class(job: ClassJob) -> tuple[list[dict], tuple[Exercise, ...], list[str
                    job.renamed.get(s) or {}, ignored=job.ignored.get(s) or {}, notes=assigned[s][1])
         for s in students if s not in reserved
     ]
-    if options.sandbox_factory is None and jobs:
-        # before any student: a sandbox that cannot import what an exercise allows would score
-        # every student 0 on it (grading_sandbox.SandboxConfigError, raised with the fix)
-        check_environment(exercises, options)
+    in_process = job.jobs == 1 or len(jobs) <= 1 or custom
+    try:
+        if options.sandbox_factory is None and jobs:
+            # before any student: a sandbox that cannot import what an exercise allows would score
+            # every student 0 on it (grading_sandbox.SandboxConfigError, raised with the fix); graded
+            # in this process, the students' own pool runs the check and keeps its zygotes
+            pool = None
+            if in_process and options.reuse_sandboxes:
+                pool = _shared_pool(preload_modules(exercises))
+            check_environment(exercises, options, pool=pool)
+    except BaseException:
+        close_shared_pools()
+        raise
     summaries: dict[str, dict] = {}
     bar = tqdm(total=len(jobs), desc="grading", unit="student", disable=not job.progress)
-    if job.jobs == 1 or len(jobs) <= 1 or custom:
+    if in_process:
         try:
             for sj in jobs:
                 summaries[sj.student] = _grade(sj)

@@ -161,10 +161,13 @@ def _check_here(exercise: Exercise) -> None:
         )
 
 
-def check_environment(exercises: Sequence[Exercise], options: GradingOptions | None = None) -> int:
+def check_environment(exercises: Sequence[Exercise], options: GradingOptions | None = None, *,
+                      pool: Any = None) -> int:
     """Start, once per distinct sandbox the ``exercises`` need (their allowlists, blocked modules
     and exposed packages), a child without student code: it imports numpy and every module the
-    allowlist names, as a student's would. Returns the number of sandboxes started.
+    allowlist names, as a student's would. Returns the number of sandboxes started. ``pool``: the
+    :class:`grading_sandbox.SandboxPool` that grades next in this process (its zygotes, started
+    here, then serve the first student); default a pool of its own, closed on return.
 
     Raises
     ------
@@ -183,7 +186,9 @@ def check_environment(exercises: Sequence[Exercise], options: GradingOptions | N
     # the same pool of zygotes a grading worker uses: sandboxes with one file system view share a
     # process that imported numpy and the allowlists once, and each configuration is checked in a
     # child it forks (what a student's exercise runs in), which costs a fraction of a fresh start
-    with SandboxPool(preload=preload_modules(exercises)) as pool:
+    own = pool is None
+    pool = SandboxPool(preload=preload_modules(exercises)) if own else pool
+    try:
         for ex in exercises:
             kwargs = sandbox_options(ex, options)
             key = (kwargs.get("allowed"), kwargs["blocked"], kwargs.get("packages"),
@@ -193,6 +198,9 @@ def check_environment(exercises: Sequence[Exercise], options: GradingOptions | N
             seen.add(key)
             with pool([], **kwargs) as box:
                 box.start()
+    finally:
+        if own:
+            pool.close()
     return len(seen)
 
 
