@@ -63,21 +63,22 @@ With :math:`I_0, I_1` the grey images and :math:`D_1` the depth map at :math:`t 
 
 The start: matches
 ------------------
-``init="matches"`` (the default; :mod:`flowtrack._rgbd_match`): OpenCV's DIS optical flow and a
-coarse exhaustive block search on the grey and log-depth images, both directions, the candidate with
-the lowest matching cost per pixel; a pixel is *matched* where that cost is low, its neighbourhood
-textured, the forward-backward check passes and it is not on a depth edge; it is lifted to 3-D with
-the depth at :math:`t + \Delta t` read at :math:`x + u` (of the four pixels around it, the one nearest
-its own depth). Then every depth-connected segment of frame :math:`t` is aligned rigidly (six
-parameters, robust photometric and geometric residuals, Gauss–Newton coarse to fine,
-:mod:`flowtrack._rgbd_segments`): a pixel takes its segment's rigid motion where that fits it at least
-about as well as its own match — the motion of a nearly uniform or turning face, which no pixel can
-match alone. Every pixel still without a match takes the displacement of the geodesically nearest
-matched pixel, the path length counting depth jumps (so a hidden pixel moves with its own surface).
-That field starts the refinement on the ``levels`` finest pyramid levels; the match term keeps the
-refinement near it. ``init="zero"`` is the classic coarse-to-fine scheme from zero displacement on
-every level that fits (large motions and the silhouette failure above are then out of reach); ``init``
-may also be an (H, W, 3) array of velocities (NaN: unknown) used as the match.
+``init="matches"`` (the default; :mod:`flowtrack._rgbd_match`): OpenCV's DIS optical flow and a coarse
+exhaustive block search on the grey and log-depth images, both directions, the candidate with the lowest
+matching cost per pixel; a pixel is *matched* where that cost is low, its neighbourhood textured, the
+forward-backward check passes and it is not on a depth edge; it is lifted to 3-D with the depth at
+:math:`t + \Delta t` read at :math:`x + u` (of the four pixels around it, the one nearest its own
+depth). Then every depth-connected segment of frame :math:`t` is aligned rigidly (six parameters, robust
+photometric and geometric residuals, Gauss–Newton coarse to fine, :mod:`flowtrack._rgbd_segments`,
+started from its matches and from the best shift of the whole segment searched as one template, which
+finds it by its outline when none of its pixels matches): a pixel takes its segment's rigid motion where
+that fits it at least about as well as its own match — the motion of a nearly uniform or turning face,
+which no pixel can match alone. Every pixel still without a match takes the displacement of the
+geodesically nearest matched pixel, the path length counting depth jumps (so a hidden pixel moves with
+its own surface). That field starts the refinement on the ``levels`` finest pyramid levels; the match
+term keeps the refinement near it. ``init="zero"`` is the classic coarse-to-fine scheme from zero
+displacement on every level that fits (large motions and the silhouette failure above are then out of
+reach); ``init`` may also be an (H, W, 3) array of velocities (NaN: unknown) used as the match.
 
 Brightness changes
 ------------------
