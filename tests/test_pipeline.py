@@ -140,6 +140,39 @@ def test_cloud_from_depth_voxel_grid_thins_to_one_point_per_voxel():
         cloud_from_depth(np.ones(5), cam)
 
 
+@pytest.mark.parametrize("n_fast", [0, 7, 40, 100])
+def test_moving_first_subsample_keeps_every_fast_point_then_a_random_share_of_the_rest(n_fast):
+    from flowtrack.pipeline import moving_first_subsample
+
+    rng = np.random.default_rng(n_fast)
+    speeds = rng.uniform(0.0, 0.019, 200)
+    fast = np.sort(rng.choice(200, n_fast, replace=False))
+    speeds[fast] = rng.uniform(0.02, 1.0, n_fast)
+    speeds[rng.choice(np.setdiff1d(np.arange(200), fast), 5, replace=False)] = np.nan  # NaN is slow
+    idx = moving_first_subsample(speeds, 50, 0.02, np.random.default_rng(0))
+    assert len(idx) == 50 and len(np.unique(idx)) == 50 and np.all(np.diff(idx) > 0)
+    kept_fast = np.intersect1d(idx, fast)
+    # brute force: every fast point while they fit, otherwise only fast points
+    assert len(kept_fast) == min(n_fast, 50)
+    # the slow share is drawn at random: about uniform over the slow points (never the first ones only)
+    slow_kept = np.setdiff1d(idx, fast)
+    if len(slow_kept) > 10:
+        assert slow_kept.max() > 150 and slow_kept.min() < 50
+    assert moving_first_subsample(speeds, 500, 0.02, np.random.default_rng(0)).tolist() == list(range(200))
+
+
+def test_moving_first_subsample_bad_input():
+    from flowtrack.pipeline import moving_first_subsample
+
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match="speeds"):
+        moving_first_subsample(np.zeros((3, 2)), 2, 0.1, rng)
+    with pytest.raises(ValueError, match="max_points"):
+        moving_first_subsample(np.zeros(3), 0, 0.1, rng)
+    with pytest.raises(ValueError, match="min_speed"):
+        moving_first_subsample(np.zeros(3), 2, -0.1, rng)
+
+
 def test_predict_ahead_is_F_to_the_n_on_every_live_track_and_leaves_the_tracker_alone():
     from flowtrack.kalman import constant_velocity_model
     from flowtrack.tracking import MultiObjectTracker
@@ -547,6 +580,52 @@ def test_detection_pieces_colour_test_ignores_static_surface_covered_at_t1():
     assert len(fooled) == 1
     covered = (img0, img1, cam, depth1)
     assert detection_pieces(X, labels, flow, cfg, next_points=X, dt=0.1, images=covered) == []
+
+
+@pytest.mark.parametrize("hidden_depth", [0.0, 0.5])  # the sensor's shadow, a nearer object
+def test_detection_pieces_geometry_ignores_background_hidden_where_it_stood(hidden_depth):
+    # A static wall 1 m away whose points carry the flow of the object passing in front (1 m/s, 10 px
+    # in 0.1 s): at t+1 the wall is unseen where these points stood (no depth there, or the object in
+    # front), and the points moved along the leaked flow land on visible wall. Geometry then says
+    # "moving" (median distance to the next cloud 9.5 cm static, 0.5 cm moved) although nothing
+    # supports it; the points whose static pixel the next depth image does not see are left out.
+    from flowtrack.pipeline import detection_pieces
+
+    cam, img0, img1, X = _textured_wall(shift_px=0.0)
+    col = np.rint(X[:, 0] * cam.fx + cam.cx).astype(int)
+    piece = (col >= 30) & (col < 48)
+    labels = np.where(piece, 0, -1)
+    depth1 = np.ones((60, 80))
+    depth1[:, :48] = hidden_depth
+    nxt = X[col >= 48]  # what the sensor sees of the wall at t+1
+    flow = np.tile([1.0, 0.0, 0.0], (len(X), 1))
+    cfg = PipelineConfig(max_planes=0, min_detection_points=10)
+    fooled = detection_pieces(X, labels, flow, cfg, next_points=nxt, dt=0.1, images=(img0, img1, cam))
+    assert len(fooled) == 1 and np.array_equal(fooled[0], np.flatnonzero(piece))
+    seen = (img0, img1, cam, depth1)
+    assert detection_pieces(X, labels, flow, cfg, next_points=nxt, dt=0.1, images=seen) == []
+
+
+def test_detection_pieces_an_object_coming_nearer_is_not_hidden_by_itself():
+    # A plate 1 m away moving toward the camera at 0.3 m/s: at t+1 its old pixels show the plate
+    # itself 3 cm nearer (more than occlusion_margin). That surface is where the moved points are, so
+    # it does not hide them: the plate is kept as moving.
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import cloud_from_depth, detection_pieces
+
+    cam = PinholeCamera(fx=100.0, fy=100.0, cx=39.5, cy=29.5, width=80, height=60)
+    yy, xx = np.mgrid[0:60, 0:80]
+    on = (xx >= 30) & (xx < 50) & (yy >= 20) & (yy < 40)
+    P = cloud_from_depth(np.where(on, 1.0, 2.0), cam)
+    depth1 = np.where(on, 0.97, 2.0)
+    nxt = cloud_from_depth(depth1, cam)
+    plate = np.isclose(P[:, 2], 1.0)
+    flow = np.where(plate[:, None], [0.0, 0.0, -0.3], 0.0)
+    labels = np.where(plate, 0, -1)
+    img = np.full((60, 80, 3), 128, dtype=np.uint8)
+    cfg = PipelineConfig(max_planes=0, min_detection_points=10)
+    got = detection_pieces(P, labels, flow, cfg, next_points=nxt, dt=0.1, images=(img, img, cam, depth1))
+    assert len(got) == 1 and np.array_equal(got[0], np.flatnonzero(plate))
 
 
 # -- occlusion_position_covariances -----------------------------------------------------------------

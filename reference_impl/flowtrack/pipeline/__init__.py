@@ -106,7 +106,7 @@ Examples
 
 from __future__ import annotations
 
-from ._clouds import cloud_from_depth, open3d_threads, subsample, support_planes
+from ._clouds import cloud_from_depth, moving_first_subsample, open3d_threads, subsample, support_planes
 from ._config import PipelineConfig, flow_partners, flow_step, track_confirmer
 from ._detections import (
     detection_pieces,
@@ -125,6 +125,7 @@ __all__ = [
     "detections_from_clusters",
     "flow_partners",
     "flow_step",
+    "moving_first_subsample",
     "occlusion_position_covariances",
     "open3d_threads",
     "rgbd_cloud_flow",

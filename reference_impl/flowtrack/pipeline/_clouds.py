@@ -26,7 +26,7 @@ from .._validation import nonnegative, positive, positive_int
 from ..camera import backproject
 from ._config import PipelineConfig
 
-__all__ = ["cloud_from_depth", "open3d_threads", "subsample", "support_planes"]
+__all__ = ["cloud_from_depth", "moving_first_subsample", "open3d_threads", "subsample", "support_planes"]
 
 
 def subsample(n: int, max_points: int, rng: np.random.Generator) -> np.ndarray:
@@ -43,6 +43,50 @@ def subsample(n: int, max_points: int, rng: np.random.Generator) -> np.ndarray:
     if n <= max_points:
         return np.arange(n)
     return np.sort(rng.choice(n, size=max_points, replace=False))
+
+
+def moving_first_subsample(speeds, max_points: int, min_speed: float, rng: np.random.Generator) -> np.ndarray:
+    """Sorted indices of at most ``max_points`` points, every point at least ``min_speed`` fast first.
+
+    A random subsample (:func:`subsample`) keeps each point with the same probability, so a budget
+    spent mostly on a room's walls and floor leaves a small or far object with too few points to be
+    detected: a 640x480 Kinect-like view holds 110k-170k points on a 1 cm voxel grid, and 30 000 of
+    them keep a quarter of an object's points. The points that move are what the motion clustering and
+    the detector look at, so they are all kept (a random subset of them when they alone exceed the
+    budget), and the rest of the budget is a random subsample of the others (the support planes, the
+    static scenery and the geometric static test still see them).
+
+    Parameters
+    ----------
+    speeds : array_like, shape (N,)
+        Each point's speed (m/s), e.g. the norm of its scene flow; NaN counts as slow.
+    max_points : int, >= 1
+    min_speed : float, >= 0
+        Points at least this fast are kept first.
+    rng : numpy.random.Generator
+
+    Examples
+    --------
+    >>> speeds = np.array([0.0, 0.5, 0.0, 0.0, 0.3, 0.0])
+    >>> idx = moving_first_subsample(speeds, 3, 0.1, np.random.default_rng(0))
+    >>> len(idx), {1, 4} <= set(idx.tolist())  # both moving points, one static one
+    (3, True)
+    >>> moving_first_subsample(speeds, 10, 0.1, np.random.default_rng(0)).tolist()
+    [0, 1, 2, 3, 4, 5]
+    """
+    v = np.asarray(speeds, dtype=np.float64)
+    if v.ndim != 1:
+        raise ValueError(f"speeds must have shape (N,), got {v.shape}")
+    max_points = positive_int(max_points, "max_points")
+    min_speed = nonnegative(min_speed, "min_speed")
+    n = len(v)
+    if n <= max_points:
+        return np.arange(n)
+    fast = np.flatnonzero(np.nan_to_num(v, nan=0.0) >= min_speed)
+    if len(fast) >= max_points:
+        return fast[subsample(len(fast), max_points, rng)]
+    slow = np.setdiff1d(np.arange(n), fast, assume_unique=True)
+    return np.sort(np.concatenate([fast, slow[subsample(len(slow), max_points - len(fast), rng)]]))
 
 
 def cloud_from_depth(depth, camera, *, max_depth: float | None = None, voxel: float = 0.0) -> np.ndarray:

@@ -56,16 +56,22 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
         \overline{|v|}`. Pass the clustering's own threshold (the demo: ``rgbd_min_speed``).
     images : tuple (rgb_t, rgb_next, camera), optional
         With ``next_points``: the colour images of the two frames (uint8 (H, W, 3) or grey (H, W))
-        and the camera. Where geometry leans to static but cannot tell (the moved points' median
-        distance to the next cloud at most 1.5 times the static ones'), colour decides: the piece is
-        skipped as static only when the median grey-level difference between each point's pixel at
+        and the camera. Where geometry cannot tell (the larger of the static and moved points'
+        median distances to the next cloud at most 1.5 times the smaller), colour decides: the piece
+        is skipped as static when the median grey-level difference between each point's pixel at
         t and its static position :math:`\pi(X_i)` in the next image is no larger than at its moved
-        position :math:`\pi(X_i + v_i\,\Delta t)`. Geometry alone cannot see a textured surface slide along
-        itself (a box pushed along its long face stays on that face's plane, and a turning box
-        sweeps its faces over themselves); its texture can. A fourth element, the next frame's
-        depth image (metres, 0 = none), leaves out the points whose static pixel is covered there
-        by a surface more than ``occlusion_margin`` nearer: a moving object that passes over a
-        static surface changes that surface's colour without moving it.
+        position :math:`\pi(X_i + v_i\,\Delta t)`, and kept as moving otherwise. Geometry alone
+        cannot see a textured surface slide along itself (a box pushed along its long face stays on
+        that face's plane, and a turning box sweeps its faces over themselves); its texture can.
+        A fourth element, the next frame's depth image (metres, 0 = none), leaves out the points
+        whose static pixel is covered there by a surface more than ``occlusion_margin`` nearer from
+        the colour test: a moving object that passes over a static surface changes that surface's
+        colour without moving it. It also leaves out of the
+        geometric test the points whose static pixel the next depth image does not see (no depth
+        there, or a surface nearer than both the point and its moved position by more than
+        ``occlusion_margin``), and skips a piece none of whose points is seen: background next to
+        a moving object, whose flow the object dragged along, is hidden where it stood, so its
+        static distance is large although it did not move.
     rigid_merge : bool
         Merge touching pieces (closest points within ``cluster_radius``) that one rigid motion
         explains: a turning object's faces move at different velocities, so the motion clustering
@@ -136,12 +142,26 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
                 if min_speed is not None and np.linalg.norm(flow[piece].mean(axis=0)) < min_speed:
                     continue
                 if tree is not None:
-                    d_static = np.median(tree.query(P[piece])[0])
-                    d_moving = np.median(tree.query(P[piece] + dt * flow[piece])[0])
+                    X, V = P[piece], flow[piece]
+                    if grey is not None and grey[3] is not None:
+                        # a point whose static pixel is covered at t+1 by a surface nearer than both
+                        # of its positions, or by the sensor's shadow, says nothing: background that a
+                        # moving object passes over is hidden where it stood, and a flow that drags it
+                        # along with the object puts it on visible background, so it looked as if
+                        # it moved
+                        seen = ~_covered(X, V, dt, grey[3], grey[2], cfg.occlusion_margin)
+                        if not seen.any():
+                            continue
+                        X, V = X[seen], V[seen]
+                    d_static = np.median(tree.query(X)[0])
+                    d_moving = np.median(tree.query(X + dt * V)[0])
                     # colour decides only where geometry cannot: both hypotheses fit about as well
-                    ambiguous = d_moving <= 1.5 * d_static
-                    if d_static <= d_moving and (grey is None or not ambiguous or _colour_static(
-                            grey, P[piece], flow[piece], dt, cfg.occlusion_margin)):
+                    ambiguous = max(d_static, d_moving) <= 1.5 * min(d_static, d_moving)
+                    if grey is not None and ambiguous:
+                        static = _colour_static(grey, P[piece], flow[piece], dt, cfg.occlusion_margin)
+                    else:
+                        static = d_static <= d_moving
+                    if static:
                         continue
                 pieces.append(piece)
     if rigid_merge and len(pieces) > 1:
@@ -245,6 +265,16 @@ def _pixels(Y, cam, shape, offset=(0.0, 0.0)):
     u[ok], r[ok] = np.round(project(Y[ok], cam) + offset).astype(int).T
     ok &= (u >= 0) & (u < W) & (r >= 0) & (r < H)
     return np.where(ok, u, -1), np.where(ok, r, -1), ok
+
+
+def _covered(X, v, dt, depth_next, cam, margin: float) -> np.ndarray:
+    """Points whose static pixel the next depth image does not see: no measurement there (a sensor's
+    shadow or hole), or a surface nearer by more than ``margin`` than both the point and its moved
+    position (another surface in front, not the point's own surface come nearer)."""
+    u0, r0, ok0 = _pixels(X, cam, depth_next.shape)
+    z1 = np.where(ok0, depth_next[r0, u0], 0.0)
+    z_near = np.minimum(X[:, 2], X[:, 2] + dt * v[:, 2]) - margin
+    return ok0 & ((z1 <= 0) | (z1 < z_near))
 
 
 def _colour_static(grey, X, v, dt, margin: float) -> bool:

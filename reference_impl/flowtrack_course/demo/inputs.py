@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from flowtrack.pipeline import PipelineConfig, cloud_from_depth, subsample
+from flowtrack.pipeline import (
+    PipelineConfig,
+    cloud_from_depth,
+    moving_first_subsample,
+    rgbd_cloud_flow,
+    subsample,
+)
 from flowtrack.synth import make_scene
 
 __all__ = ["MIN_LAYOUT_FRAMES", "DemoInput", "frame_cloud", "load_input", "surface_centroids"]
@@ -40,8 +47,20 @@ class DemoInput:
         return float(self.stamps[s] - self.stamps[t])
 
 
-def frame_cloud(inp: DemoInput, t: int, cfg: PipelineConfig, rng: np.random.Generator):
-    """Back-projected, subsampled cloud of frame ``t`` and (synthetic) its ground truth."""
+def frame_cloud(inp: DemoInput, t: int, cfg: PipelineConfig, rng: np.random.Generator,
+                partner: int | None = None):
+    """Back-projected, subsampled cloud of frame ``t`` and (synthetic) its ground truth.
+
+    Synthetic input: ``(points, gt_flow, labels)``, a random subsample of the valid pixels. Real input:
+    ``(points, None, None)`` from the voxel grid (``cfg.voxel``, ``cfg.max_depth``), a random subsample
+    of it; with ``partner`` (and ``cfg.moving_first_speed`` set) ``(points, None, None, flow, seconds,
+    voxels)``: the RGB-D scene flow of the pair (t, partner) is estimated first
+    (:func:`flowtrack.pipeline.rgbd_cloud_flow`, velocities toward ``partner`` over their time apart),
+    the subsample keeps every voxel that moves at least ``moving_first_speed``
+    (:func:`flowtrack.pipeline.moving_first_subsample`), ``flow`` is that flow at the returned points,
+    ``seconds`` the time the flow took and ``voxels`` the whole voxel cloud (an even density, for the
+    detector's geometric static test: the subsample is denser where things move).
+    """
     depth = inp.depth[t]
     if inp.scene is not None:
         P = cloud_from_depth(depth, inp.camera)  # row-major valid pixels: the order of frame.points
@@ -49,11 +68,23 @@ def frame_cloud(inp: DemoInput, t: int, cfg: PipelineConfig, rng: np.random.Gene
         f = inp.scene.frames[t]
         return P[idx], f.gt_flow[idx], f.labels[idx]
     P = cloud_from_depth(depth, inp.camera, max_depth=cfg.max_depth, voxel=cfg.voxel)
-    P = P[subsample(len(P), cfg.max_points, rng)]
+    if partner is None or cfg.moving_first_speed is None:
+        P = P[subsample(len(P), cfg.max_points, rng)]
+        _check_points(inp, t, P, cfg)
+        return P, None, None
+    _check_points(inp, t, P, cfg)
+    started = time.perf_counter()
+    v = rgbd_cloud_flow(inp.rgb[t], depth, inp.rgb[partner], inp.depth[partner], inp.camera,
+                        abs(inp.interval(t, partner)), P)
+    seconds = time.perf_counter() - started
+    idx = moving_first_subsample(np.linalg.norm(v, axis=1), cfg.max_points, cfg.moving_first_speed, rng)
+    return P[idx], None, None, v[idx], seconds, P
+
+
+def _check_points(inp: DemoInput, t: int, P, cfg: PipelineConfig) -> None:
     if len(P) < 2 * cfg.k:
         raise ValueError(f"frame {t} of {inp.name} has only {len(P)} valid depth points (within "
                          f"max_depth={cfg.max_depth} m); check depth_scale and the depth images")
-    return P, None, None
 
 
 def surface_centroids(frame, min_pixels: int) -> dict[int, np.ndarray]:
