@@ -63,15 +63,15 @@ def detection_pieces(points, clusters, flow, config: PipelineConfig | None = Non
         position :math:`\pi(X_i + v_i\,\Delta t)`, and kept as moving otherwise. Geometry alone
         cannot see a textured surface slide along itself (a box pushed along its long face stays on
         that face's plane, and a turning box sweeps its faces over themselves); its texture can.
-        A fourth element, the next frame's depth image (metres, 0 = none), leaves out the points
-        whose static pixel is covered there by a surface more than ``occlusion_margin`` nearer from
-        the colour test: a moving object that passes over a static surface changes that surface's
-        colour without moving it. It also leaves out of the
-        geometric test the points whose static pixel the next depth image does not see (no depth
-        there, or a surface nearer than both the point and its moved position by more than
-        ``occlusion_margin``), and skips a piece none of whose points is seen: background next to
-        a moving object, whose flow the object dragged along, is hidden where it stood, so its
-        static distance is large although it did not move.
+        A fourth element, the next frame's depth image (metres, 0 = none), does two things. The
+        colour test leaves out the points whose static pixel is covered there by a surface more
+        than ``occlusion_margin`` nearer: a moving object that passes over a static surface changes
+        that surface's colour without moving it. The geometric test leaves out the points whose
+        static pixel the next depth image does not see (no depth there, or a surface nearer than
+        both the point and its moved position by more than ``occlusion_margin``) and skips a piece
+        none of whose points is seen: background next to a moving object, whose flow the object
+        dragged along, is hidden where it stood, so its static distance is large although it did
+        not move.
     rigid_merge : bool
         Merge touching pieces (closest points within ``cluster_radius``) that one rigid motion
         explains: a turning object's faces move at different velocities, so the motion clustering
