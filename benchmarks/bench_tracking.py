@@ -334,10 +334,10 @@ def scene_detections(scenario, seed, n_frames=FLOW_FRAMES, image_size=FLOW_IMAGE
     up = np.linalg.inv(scene.camera_pose)[:3, :3] @ np.array([0.0, 0.0, 1.0])
     nxt = frame_cloud(inp, 0, cfg, rng)
     for t in range(inp.n - 1):
-        (X, _, _), nxt = nxt, frame_cloud(inp, t + 1, cfg, rng)
+        X, nxt = nxt.points, frame_cloud(inp, t + 1, cfg, rng)
         rgbd = rgbd_cloud_flow(inp.rgb[t], inp.depth[t], inp.rgb[t + 1], inp.depth[t + 1], cam, dt, X)
-        _, clusters, _ = scene_flow_and_clusters(X, nxt[0], dt, cfg, flow=rgbd)
-        Z, V, C, Rz, W = detection_measurements(inp, t, X, clusters, rgbd, nxt[0], cfg, yaw_axis=up)
+        _, clusters, _ = scene_flow_and_clusters(X, nxt.points, dt, cfg, flow=rgbd)
+        Z, V, C, Rz, W = detection_measurements(inp, t, X, clusters, rgbd, nxt.points, cfg, yaw_axis=up)
         Ws.append(W)
         Rs.append(Rz)
         Zs.append(Z)

@@ -63,3 +63,49 @@ def test_tracks_csv_follows_every_box_within_15_cm(run):
     # every box is followed for part of the sequence, none is lost (without the colour test,
     # PipelineConfig.colour_check, geometry calls the turning box static and it is only partly tracked)
     assert m["num_unique_objects"] == 3 and m["mostly_lost"] == 0, m
+
+
+@pytest.fixture(scope="module")
+def small_sequence(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("tum_small")
+    made = _renderer().render_sequence(tmp / "boxes", seed=5, n_frames=8, rate_hz=30.0, first=30,
+                                       size=(240, 320))
+    return tmp / "boxes", made
+
+
+def test_moving_first_cloud_keeps_every_moving_voxel(small_sequence):
+    """``PipelineConfig.moving_first_speed``: the subsample holds every voxel whose RGB-D flow is that
+    fast (checked against the flow of the whole voxel cloud), the flow it returns is the flow at its
+    points, and the even-density surface is the whole voxel cloud."""
+    from flowtrack.pipeline import PipelineConfig, rgbd_cloud_flow
+    from flowtrack_course.demo.inputs import frame_cloud, load_input
+
+    root, made = small_sequence
+    inp = load_input(root, None, 3, None, 0, 0.0, 0, "mixed", {"intrinsics": made["intrinsics"]})
+    cfg = PipelineConfig(moving_first_speed=0.02, max_points=2000)
+    fc = frame_cloud(inp, 0, cfg, np.random.default_rng(0), partner=3)
+    assert fc.voxels is not None and fc.surface is fc.voxels and len(fc.voxels) > len(fc.points) == 2000
+    dt = inp.interval(0, 3)
+    v_all = rgbd_cloud_flow(inp.rgb[0], inp.depth[0], inp.rgb[3], inp.depth[3], inp.camera, dt, fc.voxels)
+    fast = {tuple(p) for p in fc.voxels[np.linalg.norm(v_all, axis=1) >= 0.02]}
+    assert 0 < len(fast) < 2000  # the boxes move; the rest is filled at random
+    assert fast <= {tuple(p) for p in fc.points}
+    v_own = rgbd_cloud_flow(inp.rgb[0], inp.depth[0], inp.rgb[3], inp.depth[3], inp.camera, dt, fc.points)
+    np.testing.assert_allclose(fc.flow, v_own, atol=1e-9)
+    plain = frame_cloud(inp, 0, PipelineConfig(max_points=2000), np.random.default_rng(0), partner=3)
+    assert plain.flow is None and plain.voxels is None and plain.surface is plain.points
+
+
+def test_demo_runs_with_moving_first_subsample(small_sequence, tmp_path):
+    """The demo's path that estimates each frame's flow with its cloud (off by default) runs end to end
+    and writes a row for every input frame."""
+    from flowtrack_course.demo.config import DemoConfig
+    from flowtrack_course.demo.run import run_demo
+
+    root, made = small_sequence
+    run_demo(tmp_path / "out", config=DemoConfig(moving_first_speed=0.02), input_dir=root,
+             input_options={"intrinsics": made["intrinsics"]}, n_frames=None, real_data=False, gif=False,
+             progress=False, echo=lambda *a, **k: None)
+    with open(tmp_path / "out" / "tracks.csv", newline="") as fh:
+        frames = {int(r["frame"]) for r in csv.DictReader(fh)}
+    assert frames == set(made["truth"])

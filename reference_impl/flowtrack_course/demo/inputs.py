@@ -16,7 +16,7 @@ from flowtrack.pipeline import (
 )
 from flowtrack.synth import make_scene
 
-__all__ = ["MIN_LAYOUT_FRAMES", "DemoInput", "frame_cloud", "load_input", "surface_centroids"]
+__all__ = ["MIN_LAYOUT_FRAMES", "DemoInput", "FrameCloud", "frame_cloud", "load_input", "surface_centroids"]
 
 #: the synthetic motions are laid out over at least this many frames, so that a short run (a test)
 #: sees the same speeds as the full one
@@ -47,38 +47,61 @@ class DemoInput:
         return float(self.stamps[s] - self.stamps[t])
 
 
+@dataclass(frozen=True)
+class FrameCloud:
+    """One frame's cloud as the pipeline sees it (:func:`frame_cloud`).
+
+    ``points`` (N, 3): the subsampled cloud. Synthetic input also carries its ground truth,
+    ``gt_flow`` (N, 3) and ``labels`` (N,); real input leaves them None. ``flow`` (N, 3) and
+    ``flow_seconds``: the RGB-D scene flow at ``points`` and the time it took, when it was estimated
+    before the subsample (``PipelineConfig.moving_first_speed``); ``voxels`` (M, 3): then the whole
+    voxel cloud, whose density is even where the subsample's is not.
+    """
+
+    points: np.ndarray
+    gt_flow: np.ndarray | None = None
+    labels: np.ndarray | None = None
+    flow: np.ndarray | None = None
+    flow_seconds: float | None = None
+    voxels: np.ndarray | None = None
+
+    @property
+    def surface(self) -> np.ndarray:
+        """The cloud at an even density, for the detector's geometric static test: the whole voxel
+        cloud when the subsample kept the moving points first, else ``points``."""
+        return self.points if self.voxels is None else self.voxels
+
+
 def frame_cloud(inp: DemoInput, t: int, cfg: PipelineConfig, rng: np.random.Generator,
-                partner: int | None = None):
+                partner: int | None = None) -> FrameCloud:
     """Back-projected, subsampled cloud of frame ``t`` and (synthetic) its ground truth.
 
-    Synthetic input: ``(points, gt_flow, labels)``, a random subsample of the valid pixels. Real input:
-    ``(points, None, None)`` from the voxel grid (``cfg.voxel``, ``cfg.max_depth``), a random subsample
-    of it; with ``partner`` (and ``cfg.moving_first_speed`` set) ``(points, None, None, flow, seconds,
-    voxels)``: the RGB-D scene flow of the pair (t, partner) is estimated first
-    (:func:`flowtrack.pipeline.rgbd_cloud_flow`, velocities toward ``partner`` over their time apart),
-    the subsample keeps every voxel that moves at least ``moving_first_speed``
-    (:func:`flowtrack.pipeline.moving_first_subsample`), ``flow`` is that flow at the returned points,
-    ``seconds`` the time the flow took and ``voxels`` the whole voxel cloud (an even density, for the
-    detector's geometric static test: the subsample is denser where things move).
+    Synthetic input: a random subsample of the valid pixels with their ground truth. Real input: a
+    random subsample of the voxel grid (``cfg.voxel``, ``cfg.max_depth``); with ``partner`` (and
+    ``cfg.moving_first_speed`` set) the RGB-D scene flow of the pair (t, partner) is estimated first
+    (:func:`flowtrack.pipeline.rgbd_cloud_flow`, velocities toward ``partner`` over their time apart)
+    and the subsample keeps every voxel that moves at least ``moving_first_speed``
+    (:func:`flowtrack.pipeline.moving_first_subsample`); the result then carries that flow, its time and
+    the whole voxel cloud (:class:`FrameCloud`).
     """
     depth = inp.depth[t]
     if inp.scene is not None:
         P = cloud_from_depth(depth, inp.camera)  # row-major valid pixels: the order of frame.points
         idx = subsample(len(P), cfg.max_points, rng)
         f = inp.scene.frames[t]
-        return P[idx], f.gt_flow[idx], f.labels[idx]
+        return FrameCloud(P[idx], f.gt_flow[idx], f.labels[idx])
     P = cloud_from_depth(depth, inp.camera, max_depth=cfg.max_depth, voxel=cfg.voxel)
     if partner is None or cfg.moving_first_speed is None:
         P = P[subsample(len(P), cfg.max_points, rng)]
         _check_points(inp, t, P, cfg)
-        return P, None, None
+        return FrameCloud(P)
     _check_points(inp, t, P, cfg)
     started = time.perf_counter()
     v = rgbd_cloud_flow(inp.rgb[t], depth, inp.rgb[partner], inp.depth[partner], inp.camera,
                         abs(inp.interval(t, partner)), P)
     seconds = time.perf_counter() - started
     idx = moving_first_subsample(np.linalg.norm(v, axis=1), cfg.max_points, cfg.moving_first_speed, rng)
-    return P[idx], None, None, v[idx], seconds, P
+    return FrameCloud(P[idx], flow=v[idx], flow_seconds=seconds, voxels=P)
 
 
 def _check_points(inp: DemoInput, t: int, P, cfg: PipelineConfig) -> None:

@@ -39,7 +39,7 @@ from .figures import (
     plot_tud_campus,
     write_gif,
 )
-from .inputs import frame_cloud, load_input, surface_centroids
+from .inputs import FrameCloud, frame_cloud, load_input, surface_centroids
 from .reproduce import reproduce_command
 from .sections import echo_summary, report_sections
 
@@ -339,7 +339,7 @@ def run_demo(
     else:
         n_track, partners = inp.n, flow_partners(inp.n, dt, cfg.flow_interval)
         span = max(abs(p - t) for t, p in enumerate(partners))
-    clouds: dict[int, tuple] = {}
+    clouds: dict[int, FrameCloud] = {}
 
     def cloud(i: int):  # each frame's cloud is drawn once, in frame order (the subsample's rng)
         for j in range(max(clouds, default=-1) + 1, i + 1):
@@ -350,25 +350,25 @@ def run_demo(
 
     for t in tqdm(range(n_track), desc="flowtrack demo", unit="frame", disable=not progress):
         s_ = partners[t]
-        X, gt_flow, labels_gt, *own = cloud(t)
+        own = cloud(t)
+        X = own.points
         nxt = cloud(s_)
         for j in [j for j in clouds if j < t - span]:
             del clouds[j]
         pair_dt = abs(inp.interval(t, s_))  # the flow below is the velocity toward frame s_ over pair_dt
-        pair = FlowPair(t, X, gt_flow, labels_gt)
-        if own:  # estimated with the cloud, for the pair (t, s_)
-            rgbd, t_rgbd, _ = own
+        pair = FlowPair(t, X, own.gt_flow, own.labels)
+        if own.flow is not None:  # estimated with the cloud, for the pair (t, s_)
+            rgbd, t_rgbd = own.flow, own.flow_seconds
         else:
             t0 = time.perf_counter()
             rgbd = rgbd_cloud_flow(inp.rgb[t], inp.depth[t], inp.rgb[s_], inp.depth[s_], cam, pair_dt, X)
             t_rgbd = time.perf_counter() - t0
-        pair.flows, pair.clusters, pair.seconds = scene_flow_and_clusters(X, nxt[0], pair_dt, cfg, flow=rgbd)
+        pair.flows, pair.clusters, pair.seconds = scene_flow_and_clusters(X, nxt.points, pair_dt, cfg,
+                                                                          flow=rgbd)
         pair.seconds[RGBD_METHOD] = t_rgbd
         t0 = time.perf_counter()
-        # the geometric static test needs the next surface at an even density: the whole voxel cloud
-        # when the subsample kept the moving points first
-        surface_next = nxt[5] if len(nxt) > 3 else nxt[0]
-        Z, V, C, Rz = detection_measurements(inp, t, X, pair.clusters, rgbd, surface_next, cfg, partner=s_)
+        # the geometric static test needs the next surface at an even density
+        Z, V, C, Rz = detection_measurements(inp, t, X, pair.clusters, rgbd, nxt.surface, cfg, partner=s_)
         pair.seconds["detection"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         reported = tracker.step(Z, V, C, position_covs=Rz)
