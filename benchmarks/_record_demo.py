@@ -8,7 +8,8 @@ runs ``flowtrack_course.cli.main(["demo", "--input", ...])`` (what the ``flowtra
 unchanged, with a passive recorder around :class:`flowtrack.tracking.MultiObjectTracker`: the
 arguments each tracker is built with (deep-copied before it uses them) and every call of ``step``
 (detections, velocities, their covariances, position covariances; copies). The record is pickled to
-``RECORD.pkl`` as ``{"init": [(args, kwargs), ...], "steps": [[(Z, V, C, R), ...] per tracker]}``.
+``RECORD.pkl`` as ``{"init": [(args, kwargs), ...], "steps": [[(Z, V, C, R, kwargs), ...] per tracker]}``
+(``kwargs``: the step's keyword arguments, e.g. ``seen_through``).
 ``benchmarks/bench_tracking.py`` replays it: the demo's own tracker again (which must reproduce
 ``tracks.csv`` row for row, the proof that nothing was changed) and a position-only tracker on the
 same detections (the ablation, which ``metrics.json`` has only for synthetic input).
@@ -53,10 +54,12 @@ def main(argv: list[str]) -> int:
         record["steps"].append([])
         orig_init(self, *args, **kwargs)
 
-    def step(self, detections, velocities=None, velocity_covs=None, position_covs=None):
+    def step(self, detections, velocities=None, velocity_covs=None, position_covs=None, **kwargs):
+        # keyword inputs (the free space the sensor saw through, yaw rates) are small, picklable objects
         record["steps"][index[id(self)]].append(
-            (_copy(detections), _copy(velocities), _copy(velocity_covs), _copy(position_covs)))
-        return orig_step(self, detections, velocities, velocity_covs, position_covs)
+            (_copy(detections), _copy(velocities), _copy(velocity_covs), _copy(position_covs),
+             copy.deepcopy(kwargs)))
+        return orig_step(self, detections, velocities, velocity_covs, position_covs, **kwargs)
 
     MultiObjectTracker.__init__ = init
     MultiObjectTracker.step = step

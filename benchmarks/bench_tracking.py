@@ -704,11 +704,13 @@ def replay(record, frames, position_only=False):
     if position_only:
         kwargs["velocity_update"] = False
     trk = MultiObjectTracker(*args, **kwargs)
-    for Z, V, C, R in record["steps"][i]:
+    for Z, V, C, R, *more in record["steps"][i]:
+        # the sensor's evidence (seen_through: where it looked past a track) goes to both trackers
+        seen = dict(seen_through=more[0].get("seen_through")) if more else {}
         if position_only:
-            trk.step(Z)
+            trk.step(Z, **seen)
         else:
-            trk.step(Z, V, C, position_covs=R)
+            trk.step(Z, V, C, position_covs=R, **seen)
     return tracks_rows(trk, frames)
 
 

@@ -714,3 +714,78 @@ def test_occlusion_covariance_validates_its_arguments():
         occ(P, [plate], depth, cam, -1.0)
     with pytest.raises(ValueError, match="points"):
         occ(P[:, :2], [plate], depth, cam, 1e-4)
+
+
+@pytest.mark.parametrize("q", [0.2, 0.5])
+def test_free_space_matches_a_brute_force_cell_quantile(q):
+    """FreeSpace against the rule written out pixel by pixel: project, take the cell's pixels, drop the
+    missing readings, take the quantile, compare with the depth plus the margin."""
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import FreeSpace
+
+    rng = np.random.default_rng(4)
+    H, W, cell, margin = 37, 51, 6, 0.1
+    depth = rng.uniform(0.5, 3.0, (H, W))
+    depth[rng.random((H, W)) < 0.3] = 0.0  # holes
+    depth[:12, :12] = 0.0                   # a cell with no reading at all
+    depth[rng.random((H, W)) < 0.05] = np.nan
+    cam = PinholeCamera(60.0, 55.0, 25.3, 18.1)
+    fs = FreeSpace(depth, cam, margin=margin, cell=cell, min_valid=0.25, quantile=q)
+    X = np.column_stack([rng.uniform(-1.5, 1.5, 400), rng.uniform(-1.2, 1.2, 400),
+                         rng.uniform(-0.2, 3.0, 400)])
+    got = fs(X)
+    for x, g in zip(X, got):
+        want = False
+        if x[2] > 1e-6:
+            u = int(np.floor(cam.fx * x[0] / x[2] + cam.cx + 0.5))
+            v = int(np.floor(cam.fy * x[1] / x[2] + cam.cy + 0.5))
+            if 0 <= u < W and 0 <= v < H:
+                blk = depth[v // cell * cell:(v // cell + 1) * cell, u // cell * cell:(u // cell + 1) * cell]
+                vals = blk[np.isfinite(blk) & (blk > 0)]
+                if vals.size >= 0.25 * cell * cell:
+                    want = bool(np.quantile(vals, q) > x[2] + margin)
+        assert g == want, x
+    assert 0 < got.sum() < len(X)
+
+
+def test_free_space_tells_a_hidden_object_from_a_gone_one():
+    """A box's coasting track: behind a nearer box it is hidden (not seen through); with the wall
+    visible where it should be, it is gone."""
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import FreeSpace
+
+    cam = PinholeCamera(300.0, 300.0, 159.5, 119.5)
+    depth = np.full((240, 320), 2.5)            # wall
+    depth[100:140, 60:120] = 0.9                # an occluder on the left
+    fs = FreeSpace(depth, cam)
+    left = np.array([[(90 - cam.cx) * 1.2 / cam.fx, 0.0, 1.2]])   # behind the occluder
+    right = np.array([[(250 - cam.cx) * 1.2 / cam.fx, 0.0, 1.2]])  # in front of the bare wall
+    on_wall = right * 2.45 / 1.2                                    # at the wall: within the margin
+    assert fs(np.vstack([left, right, on_wall])).tolist() == [False, True, False]
+    # outside the image or behind the camera: nothing known
+    assert fs(np.array([[5.0, 0.0, 1.0], [0.0, 0.0, -1.0]])).tolist() == [False, False]
+    # a small object covering a third of its centroid's cell still says "not seen through"
+    small = np.full((240, 320), 2.5)
+    small[56:64, 64:67] = 2.3
+    pos = np.array([[(65 - cam.cx) * 2.28 / cam.fx, (60 - cam.cy) * 2.28 / cam.fy, 2.28]])
+    assert FreeSpace(small, cam)(pos).tolist() == [False]
+    assert FreeSpace(small, cam, quantile=0.5)(pos).tolist() == [True]  # the median looks past it
+
+
+def test_free_space_bad_input():
+    from flowtrack.camera import PinholeCamera
+    from flowtrack.pipeline import FreeSpace
+
+    cam = PinholeCamera(300.0, 300.0, 159.5, 119.5)
+    with pytest.raises(ValueError, match="depth"):
+        FreeSpace(np.zeros(5), cam)
+    with pytest.raises(ValueError, match="inf"):
+        FreeSpace(np.full((4, 4), np.inf), cam)
+    with pytest.raises(ValueError, match="margin"):
+        FreeSpace(np.ones((4, 4)), cam, margin=0.0)
+    with pytest.raises(ValueError, match="min_valid"):
+        FreeSpace(np.ones((4, 4)), cam, min_valid=0.0)
+    with pytest.raises(ValueError, match="quantile"):
+        FreeSpace(np.ones((4, 4)), cam, quantile=1.5)
+    with pytest.raises(ValueError, match="positions"):
+        FreeSpace(np.ones((4, 4)), cam)(np.zeros((2, 2)))

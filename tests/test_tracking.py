@@ -1282,3 +1282,63 @@ def test_a_track_seen_twice_and_lost_does_not_coast_for_long():
     for _ in range(36):
         coasting += sum(t.status == "coasting" for t in trk.step(np.empty((0, 3))))
     assert 1 <= coasting <= 2 * cfg.track_coast_per_hit
+
+
+# ----------------------------------------------------------------------------- seen through: hidden or gone
+
+
+def _confirmed_track(n_hits=5, **kw):
+    trk = MultiObjectTracker(dt=0.1, q=0.1, r=1e-4, dim=3, min_hits=2, max_misses=10, **kw)
+    for k in range(n_hits):
+        trk.step(np.array([[0.01 * k, 0.0, 1.0]]))
+    return trk
+
+
+@pytest.mark.parametrize("max_seen_through", [0, 2])
+def test_a_track_the_sensor_sees_through_is_deleted_after_max_seen_through_misses(max_seen_through):
+    trk = _confirmed_track(max_seen_through=max_seen_through)
+    asked = []
+
+    def gone(P):
+        asked.append(np.array(P))
+        return np.ones(len(P), dtype=bool)
+
+    lives = 0
+    for _ in range(6):
+        lives += bool(trk.step(np.empty((0, 3)), seen_through=gone))
+    assert lives == max_seen_through  # reported while coasting, then deleted
+    assert trk.tracks == []
+    # asked at the predicted position (the track's constant velocity carried on), one track at a time
+    assert asked[0].shape == (1, 3) and asked[0][0, 0] > 0.04
+
+
+def test_a_hidden_track_coasts_and_being_seen_again_resets_the_count():
+    trk = _confirmed_track(max_seen_through=1)
+    answers = iter([True, False, True, False, True, False, True])
+
+    def sometimes(P):
+        return np.full(len(P), next(answers))
+
+    for _ in range(7):  # never two seen-through misses in a row: hidden, not gone
+        assert [t.status for t in trk.step(np.empty((0, 3)), seen_through=sometimes)] == ["coasting"]
+    # without seen_through the old rule holds: coast max_misses frames
+    trk2 = _confirmed_track()
+    n = 0
+    while trk2.step(np.empty((0, 3))):
+        n += 1
+    assert n == 10
+
+
+def test_seen_through_is_not_asked_about_detected_or_tentative_tracks():
+    trk = _confirmed_track()
+    trk.step(np.array([[0.05, 0.0, 1.0], [0.5, 0.5, 2.0]]), seen_through=lambda P: pytest.fail("asked"))
+    # the new track is tentative, the old one detected: neither is asked about, nothing is deleted
+    assert len(trk.tracks) == 2
+
+
+def test_seen_through_must_answer_one_bool_per_position():
+    trk = _confirmed_track()
+    with pytest.raises(TypeError, match="seen_through"):
+        trk.step(np.empty((0, 3)), seen_through=lambda P: np.ones(len(P) + 1, dtype=bool))
+    with pytest.raises(ValueError, match="max_seen_through"):
+        MultiObjectTracker(dt=0.1, q=0.1, r=1e-4, dim=3, max_seen_through=-1)

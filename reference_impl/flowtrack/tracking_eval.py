@@ -42,7 +42,8 @@ __all__ = ["run_tracker", "score_run", "tracking_ablation"]
 
 def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: Sequence | None = None,
                 velocity_covs: Sequence | None = None, *, ahead: int = 5,
-                position_covs: Sequence | None = None, yaw_rates: Sequence | None = None) -> dict:
+                position_covs: Sequence | None = None, yaw_rates: Sequence | None = None,
+                seen_through: Sequence | None = None) -> dict:
     """Step ``tracker`` through the frames; record reported positions and ``ahead``-frame predictions.
 
     Parameters
@@ -57,6 +58,9 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
         tracker's R for that frame).
     yaw_rates : sequence of (array_like, shape (N_t,), or None), optional
         Each detection's measured yaw rate (``step(..., yaw_rates=)``).
+    seen_through : sequence of (callable or None), optional
+        The sensor's free space per frame (``step(..., seen_through=)``, e.g.
+        :class:`flowtrack.pipeline.FreeSpace`).
 
     Returns
     -------
@@ -69,7 +73,8 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
     ahead = positive_int(ahead, "ahead")
     T = len(detections)
     for name, seq in (("velocities", velocities), ("velocity_covs", velocity_covs),
-                      ("position_covs", position_covs), ("yaw_rates", yaw_rates)):
+                      ("position_covs", position_covs), ("yaw_rates", yaw_rates),
+                      ("seen_through", seen_through)):
         if seq is not None and len(seq) != T:
             raise ValueError(f"{name} must have one entry per frame ({T}), got {len(seq)}")
     hyp, pred, tracks = [], [], []
@@ -78,7 +83,8 @@ def run_tracker(tracker: MultiObjectTracker, detections: Sequence, velocities: S
         V = None if velocities is None else velocities[t]
         given = {"velocity_covs": None if velocity_covs is None else velocity_covs[t],
                  "position_covs": None if position_covs is None else position_covs[t],
-                 "yaw_rates": None if yaw_rates is None else yaw_rates[t]}
+                 "yaw_rates": None if yaw_rates is None else yaw_rates[t],
+                 "seen_through": None if seen_through is None else seen_through[t]}
         reported = tracker.step(detections[t], V, **{k: v for k, v in given.items() if v is not None})
         live = tracker.tracks
         ahead_of = tracker.predict_ahead(ahead)
@@ -130,7 +136,7 @@ def score_run(run: dict, truth: Sequence[dict], max_dist: float) -> dict:
 
 def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r, dim=3, ahead=5,
                       max_dist=0.1, tracker_options=None, flow_options=None, position_covs=None,
-                      yaw_rates=None) -> dict:
+                      yaw_rates=None, seen_through=None) -> dict:
     r"""Position-only vs flow-aided tracking on the same detections.
 
     Parameters
@@ -163,6 +169,9 @@ def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r,
     yaw_rates : sequence of (array_like, shape (N_t,), or None), optional
         The detections' measured yaw rates, for the flow-aided run (its turn-rate tracks start from
         them).
+    seen_through : sequence of (callable or None), optional
+        The sensor's free space per frame (:class:`flowtrack.pipeline.FreeSpace`), for both runs: the
+        same evidence that a coasting track's object is gone.
 
     Returns
     -------
@@ -172,9 +181,10 @@ def tracking_ablation(detections, velocities, velocity_covs, truth, dt, *, q, r,
     base = dict(tracker_options or {})
     flow = {"velocity_update": True, **(flow_options or {})}
     runs = {
-        "position_only": run_tracker(MultiObjectTracker(dt, q, r, dim, **base), detections, ahead=ahead),
+        "position_only": run_tracker(MultiObjectTracker(dt, q, r, dim, **base), detections, ahead=ahead,
+                                     seen_through=seen_through),
         "flow_aided": run_tracker(MultiObjectTracker(dt, q, r, dim, **base, **flow), detections, velocities,
                                   velocity_covs, ahead=ahead, position_covs=position_covs,
-                                  yaw_rates=yaw_rates),
+                                  yaw_rates=yaw_rates, seen_through=seen_through),
     }
     return {k: score_run(v, truth, max_dist) for k, v in runs.items()}

@@ -115,8 +115,10 @@ from ._detections import (
     visible_centroid_velocities,
 )
 from ._flow_clusters import METHODS, RGBD_METHOD, rgbd_cloud_flow, scene_flow_and_clusters
+from ._free_space import FreeSpace
 
 __all__ = [
+    "FreeSpace",
     "METHODS",
     "PipelineConfig",
     "RGBD_METHOD",

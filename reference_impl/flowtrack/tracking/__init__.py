@@ -22,7 +22,11 @@ part per box:
 5. **Delete** (the *deleter*): a tentative track is deleted at its first miss; a confirmed track
    without a detection is *coasting* (occluded): it is only predicted, and deleted when its
    consecutive misses exceed ``max_misses``, i.e. at the ``max_misses + 1``-th consecutive miss; an
-   occlusion of up to ``max_misses`` frames keeps the track and its id.
+   occlusion of up to ``max_misses`` frames keeps the track and its id. A miss is not always an
+   occlusion: given the sensor's free space (``step(..., seen_through=)``, e.g.
+   :class:`flowtrack.pipeline.FreeSpace` from the depth image), a coasting track whose predicted
+   position the sensor saw through (a surface well behind it, nothing in front) on more than
+   ``max_seen_through`` consecutive misses is deleted: its object is gone, not hidden.
 6. **Initiate** (the *initiator*): every unassigned detection starts a *tentative* track (position
    = detection, velocity = the detection's scene-flow velocity if given, else 0 with a large
    variance), except that

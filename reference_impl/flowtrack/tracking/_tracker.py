@@ -236,6 +236,9 @@ class MultiObjectTracker:
         detected in the same frame: it is another piece of that object (a part cut off by an
         occluder, a face that moves differently), not a new one. Coasting tracks re-acquire first
         (``reacquire_radius``). Default None: every unassigned detection starts a track.
+    max_seen_through : int, default 0
+        A confirmed track is deleted when the sensor has seen through its predicted position on more
+        than this many consecutive misses (:meth:`step`'s ``seen_through``; unused without it).
     predictor, associator, updater, initiator, deleter, confirmer : optional
         Parts (see the module docstring) in place of the ones the options choose. Without flow
         options: :class:`KalmanPredictor`, :class:`GNNAssociator` ``(gate_prob)``,
@@ -317,6 +320,7 @@ class MultiObjectTracker:
         measured_omega_var=None,
         reacquire_radius=None,
         birth_exclusion_radius=None,
+        max_seen_through=0,
     ):
         self.dt = positive(dt, "dt")
         self.reacquire_radius = None if reacquire_radius is None else positive(reacquire_radius,
@@ -328,6 +332,7 @@ class MultiObjectTracker:
         _, _, _, R = constant_velocity_model(self.dt, self.q, r, self.dim)
         self.min_hits = positive_int(min_hits, "min_hits")
         self.max_misses = positive_int(max_misses, "max_misses", minimum=0)
+        self.max_seen_through = positive_int(max_seen_through, "max_seen_through", minimum=0)
         self.gate_prob = probability(gate_prob, "gate_prob")
         sr2 = float(np.mean(np.diag(R)))
         velocity_var = (100.0 * sr2 / self.dt**2) if velocity_var is None else velocity_var
@@ -356,6 +361,8 @@ class MultiObjectTracker:
         self._ids = np.zeros(0, dtype=np.int64)
         self._hits = np.zeros(0, dtype=np.int64)
         self._misses = np.zeros(0, dtype=np.int64)
+        # consecutive misses at which the sensor saw through the track's position (step's seen_through)
+        self._seen = np.zeros(0, dtype=np.int64)
         self._age = np.zeros(0, dtype=np.int64)
         self._confirmed = np.zeros(0, dtype=bool)
         self._scores = np.zeros(0)
@@ -433,7 +440,7 @@ class MultiObjectTracker:
 
     # -- the loop ------------------------------------------------------------------------------------
     def step(self, detections, velocities=None, velocity_covs=None, position_covs=None, *,
-             yaw_rates=None) -> list[Track]:
+             yaw_rates=None, seen_through=None) -> list[Track]:
         """Process one frame of detections; return the reported (confirmed or coasting) tracks.
 
         Parameters
@@ -460,6 +467,15 @@ class MultiObjectTracker:
             A track of the turn-rate model born from such a detection starts with it (variance
             ``measured_omega_var``) instead of 0; the constant-velocity model has no yaw rate and
             ignores it.
+        seen_through : callable, optional
+            The sensor's free space this frame: ``seen_through(positions (K, dim)) -> bool (K,)``, True
+            where the sensor saw past the position, so that an object there would have been in view
+            (e.g. :class:`flowtrack.pipeline.FreeSpace`: the depth image reads a surface well behind
+            it). It is asked about the confirmed tracks that missed this frame, at their predicted
+            positions; one whose position was seen through on more than ``max_seen_through``
+            consecutive misses is deleted: it is not occluded but gone (it left, stopped, or was never
+            there), and coasting it would report an object where the sensor sees none. Without it
+            (the default) a missed track coasts for ``max_misses`` frames whatever the sensor saw.
 
         Returns
         -------
@@ -487,6 +503,7 @@ class MultiObjectTracker:
         reject = self._confirm(dets, predicted, matches, missed)
         # 5. delete the tracks that ended (where confirmed tracks were detected is kept for the births)
         held = self._detected_confirmed(matches[:, 0])
+        self._look_through(seen_through)
         self._delete(reject)
         # 6. start tracks from the unmatched detections
         self._initiate(dets.subset(unmatched), held)
@@ -527,6 +544,21 @@ class MultiObjectTracker:
         self._confirmed |= confirm
         return reject
 
+    def _look_through(self, seen_through) -> None:
+        """Count, per track, the consecutive misses at which ``seen_through`` saw past its position."""
+        if seen_through is None:
+            self._seen[:] = 0
+            return
+        ask = np.flatnonzero(self._confirmed & (self._misses > 0))
+        seen = np.zeros(len(self._ids), dtype=bool)
+        if ask.size:
+            answer = np.asarray(seen_through(np.array(self.kf.x)[ask, : self.dim]))
+            if answer.shape != (ask.size,) or answer.dtype != bool:
+                raise TypeError(f"seen_through must return a bool array of shape ({ask.size},), got "
+                                f"{answer.dtype} {answer.shape}")
+            seen[ask] = answer
+        self._seen = np.where(seen, self._seen + 1, 0)
+
     def _detected_confirmed(self, matched) -> np.ndarray:
         """Positions (K, dim) of the confirmed tracks detected this frame (only with
         ``birth_exclusion_radius``: no births near them)."""
@@ -539,13 +571,14 @@ class MultiObjectTracker:
         missed) and the tentative ones the confirmer rejects."""
         dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
         dead |= reject & ~self._confirmed
+        dead |= self._seen > self.max_seen_through
         if dead.any():
             keep = ~dead
             self.kf.keep(keep)
-            (self._ids, self._hits, self._misses, self._age, self._confirmed, self._scores,
+            (self._ids, self._hits, self._misses, self._seen, self._age, self._confirmed, self._scores,
              self._anchor_sum, self._anchor_n) = (
-                a[keep] for a in (self._ids, self._hits, self._misses, self._age, self._confirmed,
-                                  self._scores, self._anchor_sum, self._anchor_n)
+                a[keep] for a in (self._ids, self._hits, self._misses, self._seen, self._age,
+                                  self._confirmed, self._scores, self._anchor_sum, self._anchor_n)
             )
 
     def _reacquire_at_birth(self, Z, x0, P0) -> np.ndarray:
@@ -602,6 +635,7 @@ class MultiObjectTracker:
         self._next_id += k
         self._hits = np.concatenate([self._hits, np.ones(k, dtype=np.int64)])
         self._misses = np.concatenate([self._misses, np.zeros(k, dtype=np.int64)])
+        self._seen = np.concatenate([self._seen, np.zeros(k, dtype=np.int64)])
         self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
         scores0 = self.confirmer.initial_scores(k)
         self._scores = np.concatenate([self._scores, scores0])

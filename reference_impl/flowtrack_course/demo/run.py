@@ -15,6 +15,7 @@ from flowtrack.motion import detection_velocity_covariances
 from flowtrack.pipeline import (
     METHODS,
     RGBD_METHOD,
+    FreeSpace,
     detection_pieces,
     flow_partners,
     flow_step,
@@ -320,6 +321,7 @@ def run_demo(
     tracker_options = dict(min_hits=cfg.min_hits, max_misses=max_misses,
                            gate_prob=cfg.gate_prob, reacquire_radius=cfg.track_reacquire_radius,
                            birth_exclusion_radius=cfg.track_birth_exclusion_radius,
+                           max_seen_through=cfg.track_max_seen_through * flow_step(dt, cfg.flow_interval),
                            confirmer=track_confirmer(cfg),
                            deleter=MissCountDeleter(max_misses, coast_per_hit=cfg.track_coast_per_hit))
     tracker = MultiObjectTracker(dt=dt, q=cfg.track_q, r=cfg.track_r, dim=3, velocity_update=True,
@@ -330,7 +332,8 @@ def run_demo(
     min_pixels = int(np.ceil(cfg.min_detection_points * max(1.0, n_valid / cfg.max_points)))
     pairs: list[FlowPair] = []
     snapshots, hyp, gt_frames, n_detections = [], [], [], []
-    Zs, Vs, Cs, Rs = [], [], [], []  # per-frame detections, velocities, their covariances
+    # per-frame detections, velocities, their covariances, position covariances, free space
+    Zs, Vs, Cs, Rs, Fs = [], [], [], [], []
     # the synthetic scene is rendered past the processed frames: every frame pairs with the next one.
     # Real input pairs every frame with one at least flow_interval later (the last ones backwards),
     # so that the last frame is tracked too and the thresholds mean the same at 30 Hz as at 10 Hz.
@@ -371,12 +374,16 @@ def run_demo(
         Z, V, C, Rz = detection_measurements(inp, t, X, pair.clusters, rgbd, nxt.surface, cfg, partner=s_)
         pair.seconds["detection"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        reported = tracker.step(Z, V, C, position_covs=Rz)
+        # the depth image tells a hidden object (coast on) from a gone one (delete the track)
+        free = (None if cfg.track_free_space_margin is None
+                else FreeSpace(inp.depth[t], cam, margin=cfg.track_free_space_margin))
+        reported = tracker.step(Z, V, C, position_covs=Rz, seen_through=free)
         pair.seconds["tracker step"] = time.perf_counter() - t0
         Zs.append(Z)
         Vs.append(V)
         Cs.append(C)
         Rs.append(Rz)
+        Fs.append(free)
         n_detections.append(len(Z))
         snapshots.append([(tr.id, tr.position.copy(), tr.P[:3, :3].copy(), tr.status) for tr in reported])
         hyp.append({tr.id: tr.position.copy() for tr in reported if tr.misses == 0})
@@ -459,7 +466,7 @@ def run_demo(
                                    ground_truth="centroid of each object's visible noiseless surface")
         summary["tracking_ablation"] = tracking_ablation_section(scene, Zs, Vs, Cs, dt, cfg, min_pixels,
                                                                  predict_ahead, tracker_options,
-                                                                 position_covs=Rs)
+                                                                 position_covs=Rs, seen_through=Fs)
     else:
         summary["scene_flow"] = None
         summary["tracking"] = None
@@ -515,21 +522,23 @@ def run_demo(
 
 
 def tracking_ablation_section(scene, detections, velocities, velocity_covs, dt, cfg, min_pixels: int,
-                              ahead: int, tracker_options: dict, position_covs=None) -> dict:
+                              ahead: int, tracker_options: dict, position_covs=None,
+                              seen_through=None) -> dict:
     """Position-only vs flow-aided tracking on the demo's own detections
     (:func:`flowtrack.tracking_eval.tracking_ablation`).
 
     The truth is the centroid of each object's visible surface in every rendered frame (the frames
     past the last processed one score the ``ahead``-frame predictions); the flow-aided run is the
     demo's tracker (position and RGB-D velocity with the per-detection covariances, and the
-    detections' position covariances ``position_covs`` when given).
+    detections' position covariances ``position_covs`` when given); both runs get the sensor's free
+    space ``seen_through`` (per frame, when given).
     """
     from flowtrack.tracking_eval import tracking_ablation
 
     truth = [surface_centroids(f, min_pixels) for f in scene.frames]
     res = tracking_ablation(detections, velocities, velocity_covs, truth, dt, q=cfg.track_q, r=cfg.track_r,
                             ahead=ahead, max_dist=cfg.mot_max_dist, tracker_options=tracker_options,
-                            position_covs=position_covs)
+                            position_covs=position_covs, seen_through=seen_through)
     return {k: {m: json_number(v) for m, v in r.items()} for k, r in res.items()}
 
 
