@@ -1342,3 +1342,28 @@ def test_seen_through_must_answer_one_bool_per_position():
         trk.step(np.empty((0, 3)), seen_through=lambda P: np.ones(len(P) + 1, dtype=bool))
     with pytest.raises(ValueError, match="max_seen_through"):
         MultiObjectTracker(dt=0.1, q=0.1, r=1e-4, dim=3, max_seen_through=-1)
+
+
+def test_a_track_deleted_as_seen_through_is_revived_with_its_id_when_its_object_returns():
+    """A small object missed for a frame or two looks like free space; when it is detected again near
+    where its track was deleted (within reacquire_radius, while the coasting budget lasts), the track
+    comes back confirmed with its id instead of a new identity."""
+    trk = _confirmed_track(max_seen_through=0, reacquire_radius=0.15)
+    assert [t.id for t in trk.step(np.empty((0, 3)), seen_through=lambda P: np.ones(len(P), bool))] == []
+    assert trk.tracks == []
+    # a second object appears meanwhile: a new id; the first one back: its old id, confirmed at once
+    trk.step(np.array([[1.0, 1.0, 2.0]]))
+    back = trk.step(np.array([[0.07, 0.0, 1.0], [1.0, 1.0, 2.0]]))
+    assert sorted((t.id, t.status) for t in back) == [(0, "confirmed"), (1, "confirmed")]
+    assert [t.id for t in trk.tracks] == [0, 1]  # reported in order of id
+    # too far, or after the coasting budget: a new track
+    trk2 = _confirmed_track(max_seen_through=0, reacquire_radius=0.15)
+    trk2.step(np.empty((0, 3)), seen_through=lambda P: np.ones(len(P), bool))
+    trk2.step(np.array([[0.5, 0.0, 1.0]]))
+    assert [t.id for t in trk2.tracks] == [1]
+    trk3 = _confirmed_track(max_seen_through=0, reacquire_radius=0.15)
+    trk3.step(np.empty((0, 3)), seen_through=lambda P: np.ones(len(P), bool))
+    for _ in range(12):
+        trk3.step(np.empty((0, 3)))
+    trk3.step(np.array([[0.05, 0.0, 1.0]]))
+    assert [t.id for t in trk3.tracks] == [1]

@@ -370,6 +370,14 @@ class MultiObjectTracker:
         self._anchor_sum = np.zeros((0, self.dim))
         self._anchor_n = np.zeros(0, dtype=np.int64)
         self._R = np.asarray(R, dtype=float)
+        # tracks deleted because the sensor saw through them, kept for re-acquisition (reacquire_radius)
+        # while their coasting budget lasts: ids, positions (carried on at their velocities, as a
+        # coasting track's), velocities, frames left, hits
+        self._gone_ids = np.zeros(0, dtype=np.int64)
+        self._gone_pos = np.zeros((0, self.dim))
+        self._gone_vel = np.zeros((0, self.dim))
+        self._gone_left = np.zeros(0, dtype=np.int64)
+        self._gone_hits = np.zeros(0, dtype=np.int64)
         self._next_id = 0
         self.frame = -1
         # one record per frame: (frame, ids (M,), x (M,n), P (M,n,n), status codes (M,))
@@ -571,7 +579,10 @@ class MultiObjectTracker:
         missed) and the tentative ones the confirmer rejects."""
         dead = np.asarray(self.deleter.delete(self._hits, self._misses, self._confirmed), dtype=bool)
         dead |= reject & ~self._confirmed
-        dead |= self._seen > self.max_seen_through
+        gone = self._confirmed & (self._seen > self.max_seen_through)
+        dead |= gone
+        if self.reacquire_radius is not None:
+            self._bury(gone)
         if dead.any():
             keep = ~dead
             self.kf.keep(keep)
@@ -580,6 +591,63 @@ class MultiObjectTracker:
                 a[keep] for a in (self._ids, self._hits, self._misses, self._seen, self._age,
                                   self._confirmed, self._scores, self._anchor_sum, self._anchor_n)
             )
+
+    def _bury(self, gone) -> None:
+        """Keep the tracks ``gone`` (seen through) for re-acquisition, for what is left of their
+        coasting budget; age the ones kept before."""
+        keep = self._gone_left > 1
+        self._gone_ids, self._gone_vel = self._gone_ids[keep], self._gone_vel[keep]
+        self._gone_pos = self._gone_pos[keep] + self.dt * self._gone_vel
+        self._gone_left, self._gone_hits = self._gone_left[keep] - 1, self._gone_hits[keep]
+        budget = self.max_misses - self._misses[gone]
+        if np.any(budget > 0):
+            g = np.flatnonzero(gone)[budget > 0]
+            x = np.array(self.kf.x)[g]
+            self._gone_ids = np.concatenate([self._gone_ids, self._ids[g]])
+            self._gone_pos = np.concatenate([self._gone_pos, x[:, : self.dim]])
+            self._gone_vel = np.concatenate([self._gone_vel, x[:, self.dim: 2 * self.dim]])
+            self._gone_left = np.concatenate([self._gone_left, budget[budget > 0]])
+            self._gone_hits = np.concatenate([self._gone_hits, self._hits[g]])
+
+    def _revive(self, Z, x0, P0) -> np.ndarray:
+        """Re-acquisition of a track deleted because the sensor saw through it (it was lost, not
+        gone: a small object missed for a few frames): an unassigned detection within
+        ``reacquire_radius`` of where it was deleted restarts it from the detection's birth state, as
+        confirmed, with its id (nearest pairs first); returns the mask of the detections taken."""
+        taken = np.zeros(len(Z), dtype=bool)
+        if len(self._gone_ids) == 0 or len(Z) == 0:
+            return taken
+        D = np.linalg.norm(Z[:, None, : self.dim] - self._gone_pos[None], axis=2)
+        pairs: list[tuple[int, int]] = []  # (detection, grave), nearest first
+        for flat in np.argsort(D, axis=None, kind="stable"):
+            i, j = divmod(int(flat), len(self._gone_ids))
+            if D[i, j] > self.reacquire_radius:
+                break
+            if taken[i] or any(j == g for _, g in pairs):
+                continue
+            taken[i] = True
+            pairs.append((i, j))
+        if not pairs:
+            return taken
+        a = np.array([i for i, _ in pairs])
+        b = np.array([j for _, j in pairs])
+        k = len(a)
+        self.kf.append(x0[a], P0[a])
+        self._ids = np.concatenate([self._ids, self._gone_ids[b]])
+        self._hits = np.concatenate([self._hits, self._gone_hits[b] + 1])
+        self._misses = np.concatenate([self._misses, np.zeros(k, dtype=np.int64)])
+        self._seen = np.concatenate([self._seen, np.zeros(k, dtype=np.int64)])
+        self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
+        self._scores = np.concatenate([self._scores, self.confirmer.initial_scores(k)])
+        self._anchor_sum = np.concatenate([self._anchor_sum, Z[a]])
+        self._anchor_n = np.concatenate([self._anchor_n, np.ones(k, dtype=np.int64)])
+        self._confirmed = np.concatenate([self._confirmed, np.ones(k, dtype=bool)])
+        keep = np.ones(len(self._gone_ids), dtype=bool)
+        keep[b] = False
+        self._gone_ids, self._gone_pos, self._gone_vel = (self._gone_ids[keep], self._gone_pos[keep],
+                                                          self._gone_vel[keep])
+        self._gone_left, self._gone_hits = self._gone_left[keep], self._gone_hits[keep]
+        return taken
 
     def _reacquire_at_birth(self, Z, x0, P0) -> np.ndarray:
         """Re-acquisition of unassigned detections: each coasting confirmed track takes the nearest
@@ -623,6 +691,8 @@ class MultiObjectTracker:
         if self.reacquire_radius is not None:
             back = self._reacquire_at_birth(Z, x0, P0)
             x0, P0, Z = x0[~back], P0[~back], Z[~back]
+            back = self._revive(Z, x0, P0)
+            x0, P0, Z = x0[~back], P0[~back], Z[~back]
         if len(held) and len(Z):
             d2 = ((Z[:, None, : self.dim] - held[None]) ** 2).sum(axis=2)
             part = (d2 <= self.birth_exclusion_radius**2).any(axis=1)
@@ -646,23 +716,26 @@ class MultiObjectTracker:
 
     def _record(self) -> list[Track]:
         """Log this frame's tracks (:meth:`history`, :meth:`trajectories`); return the reported ones."""
-        xs = self.kf.x.copy()
-        Ps = self.kf.P.copy()
+        # in order of id (a revived track sits after younger ones in the filter)
+        o = np.argsort(self._ids, kind="stable")
+        xs = self.kf.x[o]
+        Ps = self.kf.P[o]
         xs.flags.writeable = False
         Ps.flags.writeable = False
-        codes = np.where(self._confirmed, np.where(self._misses > 0, 2, 1), 0)
-        self._log.append((self.frame, self._ids.copy(), xs, Ps, codes))
-        self._counts.append(np.stack([self._hits, self._misses, self._age]))
+        codes = np.where(self._confirmed, np.where(self._misses > 0, 2, 1), 0)[o]
+        ids, hits, misses, age = self._ids[o], self._hits[o], self._misses[o], self._age[o]
+        self._log.append((self.frame, ids, xs, Ps, codes))
+        self._counts.append(np.stack([hits, misses, age]))
         self._snapshot = list(
             map(
                 Track,
-                self._ids.tolist(),
+                ids.tolist(),
                 list(xs),
                 list(Ps),
                 [STATUSES[c] for c in codes.tolist()],
-                self._hits.tolist(),
-                self._misses.tolist(),
-                self._age.tolist(),
+                hits.tolist(),
+                misses.tolist(),
+                age.tolist(),
             )
         )
         return [t for t in self._snapshot if t.status != "tentative"]
