@@ -161,9 +161,9 @@ class PipelineConfig:
     #: Chosen on the training split of benchmarks/_evalscenes.py (every non-tentative row scored):
     #: the coasting rows of tracks whose object had left or stopped were a third of the false
     #: positives there, and 0.1 m with 0 took the false positives from 118 to 59 rows and the mean
-    #: MOTA from 0.524 to 0.566 (fast sequence 2005: 0.339 -> 0.562), costing one ID switch on
-    #: sequence 2000 (0.951 -> 0.932, a far sphere missed for a few frames). 0.2 m: mean 0.558;
-    #: max 1 (3 frames at 30 Hz): mean 0.552, 2000 back to 0.951 but 2005 only 0.413
+    #: MOTA from 0.524 to 0.567 (fast sequence 2005: 0.339 -> 0.562; no ID switch added: a far
+    #: sphere's track deleted as it slid behind an occluder is revived with its id, see the
+    #: tracker's ``reacquire_radius``). 0.2 m: mean 0.557; max 1 (3 frames at 30 Hz): mean 0.552
     track_free_space_margin: float | None = 0.1
     track_max_seen_through: int = 0
     #: two pieces are one rigid object (:func:`detection_pieces`' ``rigid_merge`` and ``occluders``) when the

@@ -26,7 +26,8 @@ part per box:
    occlusion: given the sensor's free space (``step(..., seen_through=)``, e.g.
    :class:`flowtrack.pipeline.FreeSpace` from the depth image), a coasting track whose predicted
    position the sensor saw through (a surface well behind it, nothing in front) on more than
-   ``max_seen_through`` consecutive misses is deleted: its object is gone, not hidden.
+   ``max_seen_through`` consecutive misses is deleted: its object is gone, not hidden (with
+   ``reacquire_radius`` it can still be revived with its id, below).
 6. **Initiate** (the *initiator*): every unassigned detection starts a *tentative* track (position
    = detection, velocity = the detection's scene-flow velocity if given, else 0 with a large
    variance), except that
@@ -35,7 +36,9 @@ part per box:
      detection within r of it (outside its gate: its velocity was learnt while the object was being
      hidden, from a shrinking visible surface, or the visible part jumped) restarts the track from
      that detection's birth state instead of starting a new track, and the track keeps its id
-     (nearest pairs first, each track and detection once);
+     (nearest pairs first, each track and detection once); a track deleted because the sensor saw
+     through it is kept for this as long as it could have coasted, and comes back confirmed, with
+     its id;
    - with ``birth_exclusion_radius`` r, an unassigned detection within r of a confirmed track that
      was detected in the same frame starts no track: it is another piece of that object.
 

@@ -230,7 +230,11 @@ class MultiObjectTracker:
     reacquire_radius : float, optional
         Re-acquisition after an occlusion (m; see the module docstring): a coasting confirmed track
         takes the nearest unassigned detection within this distance and restarts from it, keeping
-        its id. Default None: off.
+        its id. A track deleted because the sensor saw through it (``max_seen_through``) is kept for
+        this too while its coasting budget lasts (``max_misses`` less its misses), its position
+        carried on at its velocity: a detection within this distance of it revives it, confirmed,
+        with its id (a small object lost from view for a moment was taken for gone). Default None:
+        off.
     birth_exclusion_radius : float, optional
         No track is started from a detection within this distance (m) of a confirmed track that was
         detected in the same frame: it is another piece of that object (a part cut off by an
